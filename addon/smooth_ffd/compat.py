@@ -1,0 +1,144 @@
+"""Blender-version differences, in one place (reference-facts sections 2 and 3).
+
+Every other module asks this one instead of testing ``bpy.app.version`` itself, so a new
+Blender release means editing only this file.
+"""
+import bpy
+import numpy as np
+
+VERSION = bpy.app.version[:2]
+
+# 4.1 removed use_auto_smooth / calc_normals_split; corner normals are always available.
+HAS_CORNER_NORMALS = VERSION >= (4, 1)
+# 4.5 stores free custom normals as a float3 corner attribute named "custom_normal".
+HAS_FREE_NORMAL_ATTRIBUTE = VERSION >= (4, 5)
+# 4.0 replaced NodeTree.inputs/outputs with NodeTree.interface.
+HAS_TREE_INTERFACE = VERSION >= (4, 0)
+# 5.2 moved modifier inputs from ID properties to mod.properties.inputs.
+HAS_MODIFIER_PROPERTIES = VERSION >= (5, 2)
+# Attributes for sharp edges / flat faces replaced the MeshEdge/MeshPolygon flags.
+HAS_SHARP_EDGE_ATTRIBUTE = VERSION >= (3, 5)
+HAS_SHARP_FACE_ATTRIBUTE = VERSION >= (3, 6)
+
+
+# --- node group interface -------------------------------------------------------------------
+
+def new_group_socket(group, in_out, socket_type, name):
+    """Adds an interface socket; returns it (its identifier is assigned by Blender)."""
+    if HAS_TREE_INTERFACE:
+        return group.interface.new_socket(name, in_out=in_out, socket_type=socket_type)
+    sockets = group.inputs if in_out == 'INPUT' else group.outputs
+    return sockets.new(socket_type, name)
+
+
+def group_sockets(group, in_out='INPUT'):
+    """The group's interface sockets of one direction, in order."""
+    if HAS_TREE_INTERFACE:
+        return [item for item in group.interface.items_tree
+                if item.item_type == 'SOCKET' and item.in_out == in_out]
+    return list(group.inputs if in_out == 'INPUT' else group.outputs)
+
+
+def hide_in_modifier(socket):
+    """Hides an internal input from the modifier panel where Blender can (4.2+)."""
+    if hasattr(socket, "hide_in_modifier"):
+        socket.hide_in_modifier = True
+
+
+def input_identifier(group, name):
+    """Resolves a group input's identifier from its name: Input_N up to 3.6, Socket_N from 4.0."""
+    for socket in group_sockets(group, 'INPUT'):
+        if socket.name == name:
+            return socket.identifier
+    raise KeyError(f"node group {group.name!r} has no input named {name!r}")
+
+
+def get_modifier_input(mod, name):
+    ident = input_identifier(mod.node_group, name)
+    if HAS_MODIFIER_PROPERTIES:
+        return getattr(mod.properties.inputs, ident).value
+    return mod[ident]
+
+
+def set_modifier_input(mod, name, value):
+    ident = input_identifier(mod.node_group, name)
+    if HAS_MODIFIER_PROPERTIES:
+        getattr(mod.properties.inputs, ident).value = value
+    else:
+        mod[ident] = value
+
+
+# --- reading split normals ------------------------------------------------------------------
+
+def read_corner_normals(mesh):
+    """(C, 3) float32 split normals as Blender shades them (custom, sharp edges, flat faces)."""
+    out = np.empty(len(mesh.loops) * 3, dtype=np.float32)
+    if HAS_CORNER_NORMALS:
+        mesh.corner_normals.foreach_get("vector", out)
+    else:
+        # Without auto smooth, 3.4 ignores sharp edges and custom normals; calc_normals_split
+        # then gives vertex normals on smooth faces and face normals on flat ones, which is
+        # exactly what Blender shades.
+        mesh.calc_normals_split()
+        mesh.loops.foreach_get("normal", out)
+    return out.reshape(-1, 3)
+
+
+# --- writing the result's flags and normals --------------------------------------------------
+
+def set_all_faces_smooth(mesh):
+    """Output normals come from the normal patches, so no face may force flat shading."""
+    if HAS_SHARP_FACE_ATTRIBUTE:
+        attr = mesh.attributes.get("sharp_face")
+        if attr is not None:
+            mesh.attributes.remove(attr)
+    else:
+        mesh.polygons.foreach_set("use_smooth", np.ones(len(mesh.polygons), dtype=bool))
+
+
+def set_sharp_edges(mesh, flags):
+    """flags: (E,) bool per mesh edge."""
+    if HAS_SHARP_EDGE_ATTRIBUTE:
+        attr = mesh.attributes.get("sharp_edge")
+        if not flags.any():
+            if attr is not None:
+                mesh.attributes.remove(attr)
+            return
+        if attr is None:
+            attr = mesh.attributes.new("sharp_edge", 'BOOLEAN', 'EDGE')
+        attr.data.foreach_set("value", flags)
+    else:
+        mesh.edges.foreach_set("use_edge_sharp", flags)
+
+
+def enable_split_normals(mesh):
+    """3.4-4.0: custom normals and sharp edges only count with auto smooth on; an angle of
+    180 degrees makes the marked sharp edges the only splits."""
+    if not HAS_CORNER_NORMALS:
+        mesh.use_auto_smooth = True
+        mesh.auto_smooth_angle = np.pi
+
+
+def write_custom_normals(mesh, normals):
+    """normals: (C, 3) float32 unit vectors, one per loop. Returns the path used."""
+    if HAS_FREE_NORMAL_ATTRIBUTE:
+        # A float3 corner attribute named custom_normal is a free custom normal in 4.5+: a
+        # memcpy through foreach_set instead of ~1 us per corner in normals_split_custom_set.
+        attr = mesh.attributes.get("custom_normal")
+        if attr is not None and (attr.data_type != 'FLOAT_VECTOR' or attr.domain != 'CORNER'):
+            mesh.attributes.remove(attr)
+            attr = None
+        if attr is None:
+            attr = mesh.attributes.new("custom_normal", 'FLOAT_VECTOR', 'CORNER')
+        attr.data.foreach_set("vector", np.ascontiguousarray(normals, dtype=np.float32).ravel())
+        return "attribute"
+    enable_split_normals(mesh)
+    # Blender refuses a flat array here; it wants one 3-vector per loop.
+    mesh.normals_split_custom_set(np.ascontiguousarray(normals, dtype=np.float32).reshape(-1, 3))
+    return "custom_set"
+
+
+def set_loop_starts(mesh, loop_starts, loop_totals):
+    mesh.polygons.foreach_set("loop_start", loop_starts)
+    if VERSION < (4, 0):
+        mesh.polygons.foreach_set("loop_total", loop_totals)

@@ -1,0 +1,202 @@
+"""Computes one Smooth FFD modifier: gathers inputs from Blender, runs the core (reusing its
+plan when only the lattice points moved) and writes the hidden result mesh."""
+import time
+
+import bpy
+import numpy as np
+
+from . import compat, core, latticeio, logic, meshio, nodegroup
+
+OWNER_KEY = "smooth_ffd_owner"          # result object -> source object (an ID pointer)
+MODIFIER_KEY = "smooth_ffd_modifier"    # result object -> modifier name
+TOPOLOGY_KEY = "smooth_ffd_topology"    # result mesh -> plan that built its topology
+NORMALS_KEY = "smooth_ffd_normals"      # result mesh -> "exact" or "fast"
+
+
+class _State:
+    """What one modifier computed last; lives in memory only (rebuilt after reload)."""
+
+    def __init__(self):
+        self.last_key = None
+        self.source = None        # meshio.SourceMesh
+        self.source_stamp = None
+        self.deformer = None
+        self.plan_key = None
+
+
+_states = {}
+
+
+def _state(obj, mod):
+    key = (obj.name_full, mod.name)
+    st = _states.get(key)
+    if st is None:
+        st = _states[key] = _State()
+    return st
+
+
+def forget(obj=None, mod=None):
+    if obj is None:
+        _states.clear()
+    else:
+        _states.pop((obj.name_full, mod.name), None)
+
+
+class Settings:
+    def __init__(self, mod):
+        get = lambda name: compat.get_modifier_input(mod, name)
+        self.lattice = get("Lattice")
+        self.viewport_level = get("Viewport Level")
+        self.render_level = get("Render Level")
+        self.backend = get("Backend")
+        self.strength = float(get("Strength"))
+        self.vertex_group = get("Vertex Group")
+        self.invert = bool(get("Invert Vertex Group"))
+        self.exact = bool(get("Exact Normals"))
+
+
+def result_object(obj, mod, create=True):
+    """The hidden mesh object whose geometry the modifier's Object Info node shows.
+
+    It belongs to one (object, modifier); a duplicated object or copied modifier still points
+    at the original's result, so it gets its own here instead of overwriting that one.
+    """
+    ro = compat.get_modifier_input(mod, "Result Object")
+    if ro is not None and ro.type == 'MESH' and ro.get(OWNER_KEY) == obj \
+            and ro.get(MODIFIER_KEY) == mod.name:
+        return ro
+    if not create:
+        return None
+    name = f"{obj.name}.{mod.name}.result"
+    me = bpy.data.meshes.new(name)
+    ro = bpy.data.objects.new(name, me)   # never linked to a scene: hidden, yet saved (mod uses it)
+    ro[OWNER_KEY] = obj
+    ro[MODIFIER_KEY] = mod.name
+    compat.set_modifier_input(mod, "Result Object", ro)
+    return ro
+
+
+def set_status(obj, mod, text, ok):
+    """Writes status + validity only when they change (each write re-tags the object)."""
+    changed = False
+    if compat.get_modifier_input(mod, "Status") != text:
+        compat.set_modifier_input(mod, "Status", text)
+        changed = True
+    if bool(compat.get_modifier_input(mod, "Show Result")) != ok:
+        compat.set_modifier_input(mod, "Show Result", ok)
+        changed = True
+    if changed:
+        obj.update_tag()
+    if not ok:
+        print(f"Smooth FFD [{obj.name} / {mod.name}]: {text}")
+
+
+def _source(obj, settings, st, mesh_changed):
+    mesh = obj.data
+    if obj.mode == 'EDIT':
+        obj.update_from_editmode()   # edit-mode changes live in BMesh until synced
+        mesh_changed = True
+    group_index = None
+    if settings.vertex_group:
+        idx = obj.vertex_groups.find(settings.vertex_group)
+        # Like Blender's Lattice modifier, an unknown group name means no weighting.
+        group_index = idx if idx >= 0 else None
+    stamp = (group_index, settings.invert, len(mesh.vertices), len(mesh.loops), len(mesh.polygons))
+    if st.source is None or mesh_changed or st.source_stamp != stamp:
+        st.source = meshio.SourceMesh(mesh, group_index, settings.invert)
+        st.source_stamp = stamp
+    return st.source
+
+
+def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=False):
+    """Brings one modifier's result up to date; returns True when it wrote new geometry.
+
+    Errors never propagate: they go to the status line and the console, and the modifier
+    passes the source geometry through (the source mesh itself is never written).
+    """
+    st = _state(obj, mod)
+    try:
+        settings = Settings(mod)
+        level = logic.parse_level(settings.render_level if render else settings.viewport_level,
+                                  "render level" if render else "viewport level")
+        backend = logic.parse_backend(settings.backend)
+        # Exact custom normals on 3.4-4.0 only when asked for (slow); 4.1+ always exact.
+        exact = render or settings.exact or compat.HAS_CORNER_NORMALS
+        rest, pts, interp, shape, lattice_key = latticeio.read_lattice(settings.lattice, depsgraph)
+        l2o = logic.lattice_to_object(latticeio.world_matrix(obj, depsgraph),
+                                      latticeio.world_matrix(settings.lattice, depsgraph))
+        source = _source(obj, settings, st, mesh_changed)
+        ro = result_object(obj, mod)
+        key = logic.digest(lattice_key, l2o, settings.strength, source.key, level, backend, exact)
+        if not force and key == st.last_key and _result_matches(ro.data, st):
+            return False
+        t0 = time.perf_counter()
+        lattice = core.smoothffd().BlenderLattice(rest, pts, interpolation=interp,
+                                                  lattice_to_object=l2o, strength=settings.strength)
+        plan_key = (source.key, lattice.structure_key(), level, backend)
+        if st.deformer is None or st.plan_key != plan_key:
+            st.deformer = None
+            st.deformer = core.make_deformer(source, lattice, level, backend)
+            st.plan_key = plan_key
+        res = st.deformer.deform(lattice)
+        t1 = time.perf_counter()
+        normals = _write_result(obj, ro.data, res, source, logic.digest(plan_key), exact)
+        t2 = time.perf_counter()
+        st.last_key = key
+        used = res.stats.get("device", backend) if isinstance(res.stats, dict) else backend
+        set_status(obj, mod, f"OK {used}, level {level}, {len(res.triangles)} tris, "
+                             f"deform {1e3 * (t1 - t0):.1f} ms, write {1e3 * (t2 - t1):.1f} ms"
+                             f" ({normals} normals)", True)
+        _last_timing[(obj.name_full, mod.name)] = {
+            "deform_ms": 1e3 * (t1 - t0), "write_ms": 1e3 * (t2 - t1), "normals": normals,
+            "level": level, "triangles": len(res.triangles), "stats": res.stats}
+        return True
+    except logic.SmoothFFDError as e:
+        _fail(obj, mod, st, str(e))
+    except Exception as e:   # a bug or a core error: report it, never take Blender down
+        _fail(obj, mod, st, f"{type(e).__name__}: {e}")
+    return False
+
+
+_last_timing = {}
+
+
+def last_timing(obj, mod):
+    return _last_timing.get((obj.name_full, mod.name))
+
+
+def _fail(obj, mod, st, message):
+    st.last_key = None
+    try:
+        set_status(obj, mod, "Error: " + message, False)
+    except Exception as e:   # even the status write failed (e.g. group removed)
+        print(f"Smooth FFD [{obj.name}]: {message} (status not written: {e})")
+
+
+def _result_matches(mesh, st):
+    """False when something else (undo, the user) changed the result mesh behind our back."""
+    return mesh.get(TOPOLOGY_KEY) == (logic.digest(st.plan_key) if st.plan_key else None)
+
+
+def _materials(obj):
+    return [slot.material for slot in obj.material_slots] if obj.material_slots else \
+        list(obj.data.materials)
+
+
+def _write_result(obj, mesh, res, source, topology_token, exact):
+    mode = "exact" if exact else "fast"
+    same = (mesh.get(TOPOLOGY_KEY) == topology_token and len(mesh.vertices) == len(res.positions)
+            and len(mesh.polygons) == len(res.triangles))
+    # Going back from exact to fast on 3.4-4.0 needs the custom-normal layer gone: rebuild.
+    if not same or (mesh.get(NORMALS_KEY) == "exact" and mode == "fast"):
+        meshio.write_topology(mesh, res, source, _materials(obj))
+        mesh[TOPOLOGY_KEY] = topology_token
+    else:
+        meshio.write_positions(mesh, res)
+    if exact:
+        path = meshio.write_normals(mesh, res)
+    else:
+        path = "from geometry"   # 3.4-4.0 viewport: Blender's own normals of the dense mesh
+    mesh[NORMALS_KEY] = mode
+    mesh.update()
+    return path

@@ -1,0 +1,103 @@
+"""Mesh data in and out of Blender through numpy (foreach_get/foreach_set with matching
+dtypes, which Blender copies as raw memory instead of item by item)."""
+import numpy as np
+
+from . import compat, logic
+
+
+class SourceMesh:
+    """The numpy snapshot of a source mesh that the core needs, plus a fingerprint."""
+
+    def __init__(self, mesh, group_index=None, invert=False):
+        nv, nl, nf = len(mesh.vertices), len(mesh.loops), len(mesh.polygons)
+        if nf == 0:
+            raise logic.SmoothFFDError("the mesh has no faces")
+        self.positions = _get(mesh.vertices, "co", np.float32, nv * 3).reshape(nv, 3)
+        self.corner_vertices = _get(mesh.loops, "vertex_index", np.int32, nl)
+        starts = _get(mesh.polygons, "loop_start", np.int32, nf)
+        self.face_offsets = np.append(starts, np.int32(nl)).astype(np.int32)
+        if np.any(np.diff(self.face_offsets) < 3):
+            raise logic.SmoothFFDError("the mesh has faces with fewer than 3 corners")
+        self.material_index = _get(mesh.polygons, "material_index", np.int32, nf)
+        self.corner_normals = compat.read_corner_normals(mesh)
+        uv_layer = _active_uv(mesh)
+        self.uv_name = uv_layer.name if uv_layer is not None else None
+        self.uvs = (_get(uv_layer.data, "uv", np.float32, nl * 2).reshape(nl, 2)
+                    if uv_layer is not None else None)
+        self.weights = _vertex_weights(mesh, group_index, invert)
+        # Topology decides whether a cached plan can be reused; the rest only its inputs.
+        self.topology_key = logic.digest(self.corner_vertices, self.face_offsets, nv)
+        self.key = logic.digest(self.topology_key, self.positions, self.corner_normals,
+                                self.uvs, self.weights, self.material_index)
+
+    @property
+    def num_vertices(self):
+        return len(self.positions)
+
+
+def _get(collection, prop, dtype, count):
+    out = np.empty(count, dtype=dtype)
+    collection.foreach_get(prop, out)
+    return out
+
+
+def _active_uv(mesh):
+    layers = mesh.uv_layers
+    if len(layers) == 0:
+        return None
+    for layer in layers:
+        if layer.active_render:   # what render and export use
+            return layer
+    return layers.active
+
+
+def _vertex_weights(mesh, group_index, invert):
+    if group_index is None:
+        return None
+    # Python loops over deform weights are slow, but only run when the mesh itself changed.
+    idx, grp, wts = [], [], []
+    for v in mesh.vertices:
+        for g in v.groups:
+            idx.append(v.index)
+            grp.append(g.group)
+            wts.append(g.weight)
+    return logic.vertex_weights(len(mesh.vertices), group_index, idx, grp, wts, invert)
+
+
+# --- result mesh ------------------------------------------------------------------------------
+
+def write_topology(mesh, res, source, materials):
+    """Rebuilds the result mesh from a core Result (new plan or first update)."""
+    mesh.clear_geometry()
+    n, t = len(res.positions), len(res.triangles)
+    loops, starts, totals = logic.triangle_loops(res.triangles)
+    mesh.vertices.add(n)
+    mesh.loops.add(3 * t)
+    mesh.polygons.add(t)
+    mesh.vertices.foreach_set("co", np.ascontiguousarray(res.positions, np.float32).ravel())
+    mesh.loops.foreach_set("vertex_index", loops)
+    compat.set_loop_starts(mesh, starts, totals)
+    face_index = np.asarray(res.face_index, dtype=np.int64)
+    mesh.polygons.foreach_set("material_index",
+                              np.ascontiguousarray(source.material_index[face_index], np.int32))
+    mesh.update(calc_edges=True)
+    if res.uvs is not None:
+        layer = mesh.uv_layers.new(name=source.uv_name or "UVMap")
+        layer.data.foreach_set("uv", np.ascontiguousarray(res.uvs, np.float32).ravel())
+    compat.set_all_faces_smooth(mesh)
+    edges = np.empty(len(mesh.edges) * 2, dtype=np.int32)
+    mesh.edges.foreach_get("vertices", edges)
+    compat.set_sharp_edges(mesh, logic.edge_flags(edges, res.sharp_edges, n))
+    compat.enable_split_normals(mesh)
+    mesh.materials.clear()
+    for mat in materials:
+        mesh.materials.append(mat)
+
+
+def write_positions(mesh, res):
+    """Same plan as last time: only the coordinates change (topology, UVs, flags are kept)."""
+    mesh.vertices.foreach_set("co", np.ascontiguousarray(res.positions, np.float32).ravel())
+
+
+def write_normals(mesh, res):
+    return compat.write_custom_normals(mesh, np.asarray(res.corner_normals).reshape(-1, 3))

@@ -44,6 +44,10 @@ __all__ = [
     "exact_at",
     "dense_exact_ffd",
     "mesh_volume",
+    "rotation",
+    "affine",
+    "blender_rest",
+    "cube_triangles",
 ]
 
 # ---------------------------------------------------------------------------------------------
@@ -506,3 +510,45 @@ def mesh_volume(positions, triangles):
     T = np.asarray(triangles)
     a, b, c = P[T[:, 0]], P[T[:, 1]], P[T[:, 2]]
     return float(np.einsum("nd,nd->n", a, np.cross(b, c)).sum() / 6.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# small test helpers
+# ---------------------------------------------------------------------------------------------
+
+
+def rotation(axis, angle):
+    """3x3 rotation about ``axis`` by ``angle`` (Rodrigues)."""
+    axis = np.asarray(axis, dtype=np.float64)
+    axis = axis / np.linalg.norm(axis)
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * K @ K
+
+
+def affine(A, t):
+    """4x4 matrix with linear part A and translation t."""
+    M = np.eye(4)
+    M[:3, :3] = A
+    M[:3, 3] = t
+    return M
+
+
+def blender_rest(shape, lo=-0.5, hi=0.5):
+    """Blender-style rest points ``co``: a regular grid from lo to hi (0 on 1-point axes)."""
+    lo = np.broadcast_to(np.asarray(lo, dtype=np.float64), (3,))
+    hi = np.broadcast_to(np.asarray(hi, dtype=np.float64), (3,))
+    axes = [np.linspace(lo[a], hi[a], n) if n > 1 else np.zeros(1) for a, n in enumerate(shape)]
+    U, V, W = np.meshgrid(*axes, indexing="ij")
+    return np.stack([U, V, W], axis=-1)
+
+
+def cube_triangles(lo=-1.0, hi=1.0):
+    """(12, 3, 3): outward-oriented triangles of the cube [lo, hi]^3."""
+    import itertools
+
+    v = np.array(list(itertools.product((lo, hi), repeat=3)), dtype=np.float64)  # 4x+2y+z
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    tris = []
+    for a, b, c, d in quads:
+        tris += [(a, b, c), (a, c, d)]
+    return v[np.array(tris)]

@@ -9,24 +9,9 @@ import pytest
 import reference as ref
 
 
-def rotation(axis, angle):
-    axis = np.asarray(axis, dtype=float)
-    axis = axis / np.linalg.norm(axis)
-    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * K @ K
-
-
-def affine(R, t):
-    M = np.eye(4)
-    M[:3, :3] = R
-    M[:3, 3] = t
-    return M
-
-
-def blender_rest(shape, lo=-0.5, hi=0.5):
-    axes = [np.linspace(lo, hi, n) if n > 1 else np.zeros(1) for n in shape]
-    U, V, W = np.meshgrid(*axes, indexing="ij")
-    return np.stack([U, V, W], axis=-1)
+rotation = ref.rotation
+affine = ref.affine
+blender_rest = ref.blender_rest
 
 
 # ------------------------------------------------------------------------------ weights tables
@@ -327,14 +312,7 @@ def test_barycentric_grid(L):
     np.testing.assert_allclose(areas, 0.5 / L**2)
 
 
-def cube_triangles(lo=-1.0, hi=1.0):
-    """12 outward-oriented triangles of the cube [lo, hi]^3."""
-    v = np.array(list(itertools.product((lo, hi), repeat=3)))  # index = 4x + 2y + z
-    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
-    tris = []
-    for a, b, c, d in quads:
-        tris += [(a, b, c), (a, c, d)]
-    return v[np.array(tris)]
+cube_triangles = ref.cube_triangles
 
 
 def test_cube_triangles_oriented_outward():

@@ -1,0 +1,177 @@
+"""Helpers for the add-on tests. Runs inside Blender (`blender -b --python`) or in a Python
+that has the `bpy` module; never imported by pytest itself."""
+import math
+import os
+import sys
+import time
+import traceback
+
+import bpy
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.join(ROOT, "addon"))
+
+import smooth_ffd  # noqa: E402
+from smooth_ffd import compat, engine, handlers, nodegroup  # noqa: E402
+
+_registered = False
+_results = []
+
+
+def setup():
+    global _registered
+    if not _registered:
+        smooth_ffd.register()
+        _registered = True
+    print(f"blender {bpy.app.version_string}, python {sys.version.split()[0]}, "
+          f"numpy {np.__version__}")
+    sf = smooth_ffd.core.smoothffd()
+    print("core:", getattr(sf, "__file__", sf))
+
+
+def args():
+    """Arguments after `--` (blender) or after the script (python)."""
+    argv = sys.argv
+    return argv[argv.index("--") + 1:] if "--" in argv else argv[1:]
+
+
+def clear():
+    engine.forget()
+    for coll in (bpy.data.objects, bpy.data.meshes, bpy.data.lattices, bpy.data.node_groups,
+                 bpy.data.materials, bpy.data.actions, bpy.data.shape_keys):
+        for item in list(coll):
+            try:
+                coll.remove(item)
+            except Exception:   # shape keys go with their owner
+                pass
+    bpy.context.scene.frame_set(1)
+
+
+def link(obj):
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def make_mesh(kind, name="src"):
+    """Meshes Blender makes: suzanne, uvsphere, cylinder (sharp rim edges), cube."""
+    if kind == "suzanne":
+        bpy.ops.mesh.primitive_monkey_add(size=1.6)
+    elif kind == "uvsphere":
+        bpy.ops.mesh.primitive_uv_sphere_add(segments=16, ring_count=8, radius=0.8)
+    elif kind == "cylinder":
+        bpy.ops.mesh.primitive_cylinder_add(vertices=12, radius=0.7, depth=1.4)
+    elif kind == "cube":
+        bpy.ops.mesh.primitive_cube_add(size=1.3)
+    else:
+        raise ValueError(kind)
+    obj = bpy.context.active_object
+    obj.name = name
+    me = obj.data
+    if kind in ("suzanne", "uvsphere"):
+        shade_smooth(me)
+    elif kind == "cylinder":
+        shade_smooth(me)
+        mark_sharp_by_angle(me, math.radians(30))
+    return obj
+
+
+def shade_smooth(me):
+    me.polygons.foreach_set("use_smooth", np.ones(len(me.polygons), dtype=bool))
+    me.update()
+
+
+def mark_sharp_by_angle(me, angle):
+    """Sharp edges where the dihedral angle exceeds `angle` (the cylinder's rims)."""
+    if compat.HAS_CORNER_NORMALS:
+        me.set_sharp_from_angle(angle=angle)
+        return
+    me.use_auto_smooth = True
+    me.auto_smooth_angle = angle
+
+
+def make_lattice(shape=(3, 3, 3), interp="KEY_BSPLINE", loc=(0, 0, 0), rot=(0, 0, 0),
+                 scale=(1.5, 1.5, 1.5), jitter=0.15, seed=0, name="lat"):
+    lt = bpy.data.lattices.new(name)
+    lt.points_u, lt.points_v, lt.points_w = shape
+    lt.interpolation_type_u = lt.interpolation_type_v = lt.interpolation_type_w = interp
+    obj = link(bpy.data.objects.new(name, lt))
+    obj.location, obj.rotation_euler, obj.scale = loc, rot, scale
+    rng = np.random.default_rng(seed)
+    for p in lt.points:
+        p.co_deform = np.array(p.co) + rng.uniform(-jitter, jitter, 3)
+    return obj
+
+
+def lattice_modifier_twin(obj, lat, strength=1.0, vertex_group="", invert=False):
+    """An object sharing obj's mesh, with Blender's own Lattice modifier: the reference."""
+    ref = link(bpy.data.objects.new(obj.name + ".ref", obj.data))
+    ref.matrix_world = obj.matrix_world
+    for vg in obj.vertex_groups:
+        ref.vertex_groups.new(name=vg.name)
+    mod = ref.modifiers.new("Lattice", 'LATTICE')
+    mod.object = lat
+    mod.strength = strength
+    mod.vertex_group = vertex_group
+    mod.invert_vertex_group = invert
+    return ref
+
+
+def evaluated_mesh(obj):
+    dg = bpy.context.evaluated_depsgraph_get()
+    return obj.evaluated_get(dg).data
+
+
+def positions(mesh):
+    co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+    mesh.vertices.foreach_get("co", co)
+    return co.reshape(-1, 3).astype(np.float64)
+
+
+def triangles(mesh):
+    loops = np.empty(len(mesh.loops), dtype=np.int32)
+    mesh.loops.foreach_get("vertex_index", loops)
+    return loops.reshape(-1, 3)
+
+
+def corner_normals(mesh):
+    return compat.read_corner_normals(mesh).astype(np.float64)
+
+
+def lattice_size(obj, lat):
+    """Largest extent of the lattice, measured in obj's local space (tolerances scale by it)."""
+    l2o = np.linalg.solve(np.array(obj.matrix_world), np.array(lat.matrix_world))
+    return float(np.max(np.linalg.norm(l2o[:3, :3], axis=0)))
+
+
+def update():
+    bpy.context.view_layer.update()
+
+
+def check(name, ok, detail=""):
+    _results.append((name, bool(ok)))
+    print(f"{'PASS' if ok else 'FAIL'} {name} {detail}")
+    sys.stdout.flush()
+
+
+def run(name, fn, *a, **kw):
+    """Runs one test function; an exception is a failure, not an abort of the whole script."""
+    try:
+        fn(*a, **kw)
+    except Exception:
+        traceback.print_exc()
+        check(name, False, "(exception)")
+
+
+def finish():
+    failed = [n for n, ok in _results if not ok]
+    print(f"{len(_results) - len(failed)} passed, {len(failed)} failed")
+    sys.stdout.flush()
+    if failed or not _results:
+        raise SystemExit(1)
+
+
+def timed(fn, *a, **kw):
+    t = time.perf_counter()
+    out = fn(*a, **kw)
+    return out, 1e3 * (time.perf_counter() - t)

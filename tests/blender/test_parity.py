@@ -1,0 +1,94 @@
+"""Parity with Blender's own Lattice modifier: whole output at level 1, original vertices at
+higher levels; all interpolation types, 1-point axes, rotated/scaled objects and lattices,
+strength, vertex groups, vertices outside the lattice. Tolerance: 1e-5 of the lattice size."""
+import os
+import sys
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
+import sffd_testlib as T  # noqa: E402
+
+TOL = 1e-5
+INTERPS = ("KEY_LINEAR", "KEY_CARDINAL", "KEY_CATMULL_ROM", "KEY_BSPLINE")
+
+# (mesh, lattice shape, interpolation, object rot/scale, lattice rot/scale, strength, group)
+CASES = [
+    ("cube", (2, 2, 2), "KEY_LINEAR", None, None, 1.0, None),
+    ("suzanne", (3, 3, 3), "KEY_BSPLINE", None, None, 1.0, None),
+    ("uvsphere", (4, 3, 5), "KEY_CARDINAL", ((0.3, 0.2, 0.1), (1.2, 0.8, 1.0)), None, 1.0, None),
+    ("cylinder", (3, 4, 2), "KEY_CATMULL_ROM", None, ((0.1, 0.5, -0.3), (1.4, 1.1, 0.9)), 1.0, None),
+    ("suzanne", (1, 3, 3), "KEY_BSPLINE", ((0.0, 0.0, 0.7), (1, 1, 1)), ((0.2, 0, 0), (1.2, 1.3, 1.4)), 1.0, None),
+    ("uvsphere", (3, 1, 2), "KEY_LINEAR", None, ((0, 0.4, 0), (1.0, 1.0, 1.0)), 0.6, None),
+    ("cube", (5, 5, 5), "KEY_CARDINAL", ((0.5, 0.5, 0), (0.7, 1.3, 1.1)), ((0, 0, 0.9), (1.3, 1.2, 1.0)), 1.0, "group"),
+    ("cylinder", (2, 3, 4), "KEY_BSPLINE", None, None, 0.8, "inverted"),
+    ("suzanne", (4, 4, 4), "KEY_CATMULL_ROM", None, None, 1.0, "group"),
+    # Lattice much smaller than the mesh: most vertices lie outside it.
+    ("uvsphere", (3, 3, 3), "KEY_BSPLINE", None, ((0.3, 0.1, 0.2), (0.6, 0.6, 0.6)), 1.0, None),
+    ("suzanne", (2, 1, 1), "KEY_CARDINAL", None, ((0, 0, 0), (0.9, 0.9, 0.9)), 1.0, None),
+    ("cube", (3, 3, 3), "KEY_LINEAR", ((0.2, 0.1, 0.0), (2.0, 2.0, 2.0)), ((0.0, 0.1, 0.2), (3.0, 3.0, 3.0)), 1.0, None),
+]
+LEVELS = (1, 2, 3)
+
+
+def build(case, seed):
+    mesh_kind, shape, interp, obj_xf, lat_xf, strength, group = case
+    T.clear()
+    obj = T.make_mesh(mesh_kind)
+    if obj_xf:
+        obj.rotation_euler, obj.scale = obj_xf
+    lrot, lscale = lat_xf or ((0, 0, 0), (1.5, 1.5, 1.5))
+    lat = T.make_lattice(shape, interp, loc=(0.05, -0.03, 0.02), rot=lrot, scale=lscale, seed=seed)
+    vg_name, invert = "", False
+    if group:
+        vg = obj.vertex_groups.new(name="weights")
+        rng = np.random.default_rng(seed + 100)
+        for v in obj.data.vertices:
+            w = float(rng.uniform(0, 1))
+            if w > 0.15:   # some vertices stay outside the group (weight 0)
+                vg.add([v.index], w, 'REPLACE')
+        vg_name, invert = "weights", group == "inverted"
+    T.update()
+    ref = T.lattice_modifier_twin(obj, lat, strength, vg_name, invert)
+    return obj, lat, ref, strength, vg_name, invert
+
+
+def run_case(i, case):
+    obj, lat, ref, strength, vg_name, invert = build(case, seed=i)
+    import smooth_ffd
+    mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=1, render_level=1, strength=strength,
+                                    vertex_group=vg_name, invert_vertex_group=invert)
+    T.update()
+    size = T.lattice_size(obj, lat)
+    expect = T.positions(T.evaluated_mesh(ref))
+    src = T.positions(obj.data)
+    moved = np.abs(expect - src).max()
+    label = f"case{i} {case[0]} {case[1]} {case[2]} s={case[5]} vg={case[6]}"
+    for level in LEVELS:
+        from smooth_ffd import compat
+        compat.set_modifier_input(mod, "Viewport Level", level)
+        obj.update_tag()
+        T.update()
+        status = smooth_ffd.status(mod)
+        got_mesh = T.evaluated_mesh(obj)
+        got = T.positions(got_mesh)
+        if len(got) < len(expect):
+            T.check(f"{label} L{level}", False, f"too few vertices {len(got)} ({status})")
+            continue
+        err = np.abs(got[:len(expect)] - expect).max() / size
+        detail = f"max err {err:.2e} x lattice size (moved {moved / size:.3f}), {status}"
+        ok = err <= TOL and status.startswith("OK")
+        if level == 1:
+            # Level 1: no new vertices, and the triangles are the input's own corners.
+            ok = ok and len(got) == len(expect)
+        T.check(f"{label} L{level}", ok, detail)
+
+
+def main():
+    T.setup()
+    for i, case in enumerate(CASES):
+        T.run(f"case{i}", run_case, i, case)
+    T.finish()
+
+
+main()

@@ -44,6 +44,8 @@ __all__ = [
     "exact_at",
     "dense_exact_ffd",
     "mesh_volume",
+    "face_normals_of_polygons",
+    "smooth_ffd_errors",
     "rotation",
     "affine",
     "blender_rest",
@@ -510,6 +512,52 @@ def mesh_volume(positions, triangles):
     T = np.asarray(triangles)
     a, b, c = P[T[:, 0]], P[T[:, 1]], P[T[:, 2]]
     return float(np.einsum("nd,nd->n", a, np.cross(b, c)).sum() / 6.0)
+
+
+def face_normals_of_polygons(positions, faces):
+    """Unit normals of the flat input faces (Newell's method).
+
+    ``faces``: (F, 3) triangles or (corner_vertices, face_offsets) as in ``smoothffd.Mesh``."""
+    P = np.asarray(positions, dtype=np.float64)
+    if isinstance(faces, tuple):
+        corners, offsets = (np.asarray(x) for x in faces)
+        polys = [corners[offsets[f]:offsets[f + 1]] for f in range(len(offsets) - 1)]
+    else:
+        polys = list(np.asarray(faces))
+    out = np.empty((len(polys), 3))
+    for f, poly in enumerate(polys):
+        v = P[poly]
+        w = np.roll(v, -1, axis=0)
+        n = np.array([((v[:, 1] - w[:, 1]) * (v[:, 2] + w[:, 2])).sum(),
+                      ((v[:, 2] - w[:, 2]) * (v[:, 0] + w[:, 0])).sum(),
+                      ((v[:, 0] - w[:, 0]) * (v[:, 1] + w[:, 1])).sum()])
+        out[f] = n / np.linalg.norm(n)
+    return out
+
+
+def smooth_ffd_errors(result, input_face_normals, lattice_eval):
+    """Errors of a smooth-FFD ``result`` (smoothffd.Result) against the exact FFD of the flat
+    input faces, measured the paper's way (Tables 2-3): distance between corresponding points
+    (each output vertex vs F(rest_position)) and angle between corresponding normals (each
+    output corner normal vs cof(J) n_face at that corner's rest point).
+
+    Returns a dict: geometry_avg, geometry_max, normal_avg_deg, normal_max_deg, volume
+    (signed volume of the output mesh)."""
+    pos = np.asarray(result.positions, dtype=np.float64)
+    rest = np.asarray(result.rest_positions, dtype=np.float64)
+    tris = np.asarray(result.triangles)
+    fidx = np.asarray(result.face_index)
+    exact, _ = lattice_eval(rest)
+    gerr = np.linalg.norm(pos - np.asarray(exact, dtype=np.float64), axis=1)
+    fn = np.asarray(input_face_normals, dtype=np.float64)[fidx]  # (T, 3)
+    crest = rest[tris].reshape(-1, 3)
+    _, nex = exact_at(crest, np.repeat(fn, 3, axis=0), lattice_eval)
+    got = np.asarray(result.corner_normals, dtype=np.float64).reshape(-1, 3)
+    got = got / np.linalg.norm(got, axis=1, keepdims=True)
+    ang = np.degrees(np.arccos(np.clip(np.einsum("nd,nd->n", got, nex), -1.0, 1.0)))
+    return dict(geometry_avg=float(gerr.mean()), geometry_max=float(gerr.max()),
+                normal_avg_deg=float(ang.mean()), normal_max_deg=float(ang.max()),
+                volume=mesh_volume(pos, tris))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -375,3 +375,30 @@ def test_mesh_volume_tetrahedron():
     P = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
     T = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
     assert ref.mesh_volume(P, T) == pytest.approx(1 / 6)
+
+
+def test_face_normals_of_polygons():
+    P = np.array([[0.0, 0, 0], [2, 0, 0], [2, 1, 0], [0, 1, 0], [1, 0.5, 1]])
+    n = ref.face_normals_of_polygons(P, (np.array([0, 1, 2, 3, 0, 1, 4]), np.array([0, 4, 7])))
+    np.testing.assert_allclose(n[0], [0, 0, 1])
+    np.testing.assert_allclose(n, ref.face_normals_of_polygons(P, np.array([[0, 1, 2], [0, 1, 4]])))
+
+
+def test_smooth_ffd_errors_zero_for_exact_result():
+    # a fake "result" made of the dense exact FFD itself has zero error
+    from types import SimpleNamespace
+
+    tri = cube_triangles()
+    g = ref.identity_control_points([-1] * 3, [1] * 3, (3, 3, 3), (2, 2, 2))
+    rng = np.random.default_rng(14)
+    lat = ref.BSplineReference(g + rng.normal(0, 0.1, g.shape), (2, 2, 2), None, [-1] * 3, [1] * 3)
+    d = ref.dense_exact_ffd(tri, lat.evaluate, 3)
+    M = d.bary.shape[0]
+    tris = np.concatenate([d.sub_triangles + t * M for t in range(len(tri))])
+    normals = d.normals.reshape(-1, 3)
+    res = SimpleNamespace(positions=d.positions.reshape(-1, 3), rest_positions=d.rest.reshape(-1, 3),
+                          triangles=tris, face_index=np.repeat(np.arange(len(tri)), len(d.sub_triangles)),
+                          corner_normals=normals[tris])
+    e = ref.smooth_ffd_errors(res, d.face_normals, lat.evaluate)
+    assert e["geometry_max"] < 1e-12 and e["normal_max_deg"] < 1e-5
+    assert e["volume"] == pytest.approx(d.volume, rel=1e-12)

@@ -68,6 +68,9 @@ def apply_smooth_ffd(obj, mod):
     depsgraph = bpy.context.evaluated_depsgraph_get()
     handlers.guarded(depsgraph.update)
     old_mesh = obj.data
+    if old_mesh.users > 1:
+        # Blender refuses to apply to shared data; the other users keep the original mesh.
+        obj.data = old_mesh.copy()
     with bpy.context.temp_override(object=obj, active_object=obj, selected_objects=[obj]):
         # The operator applies exactly this modifier (not the ones after it) and records undo.
         result = handlers.guarded(bpy.ops.object.modifier_apply, modifier=mod.name)
@@ -75,7 +78,7 @@ def apply_smooth_ffd(obj, mod):
         raise RuntimeError(f"applying {mod.name!r} failed: {result}")
     _delete_result(ro)
     engine.forget(obj, mod)
-    return obj.data if obj.data is not old_mesh else obj.data
+    return obj.data
 
 
 def remove_smooth_ffd(obj, mod):

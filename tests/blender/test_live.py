@@ -1,0 +1,262 @@
+"""Live behaviour through the handlers: lattice edits, settings, frames, shape keys, source
+edits, errors, undo, duplicate, save/reload (with and without the add-on), apply, remove."""
+import os
+import sys
+import tempfile
+
+import bpy
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
+import sffd_testlib as T  # noqa: E402
+import smooth_ffd  # noqa: E402
+from smooth_ffd import compat, engine  # noqa: E402
+
+TOL = 1e-5
+
+
+def scene(kind="suzanne", shape=(3, 3, 3), level=2):
+    T.clear()
+    obj = T.make_mesh(kind)
+    lat = T.make_lattice(shape, "KEY_BSPLINE", scale=(1.6, 1.6, 1.6), seed=3)
+    ref = T.lattice_modifier_twin(obj, lat)
+    mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=level, render_level=level + 1)
+    T.update()
+    return obj, lat, ref, mod
+
+
+def base_triangles(mesh):
+    return int(sum(len(p.vertices) - 2 for p in mesh.polygons))
+
+
+def parity(name, obj, lat, ref, mod):
+    """Evaluated result's first V vertices == Blender's Lattice modifier."""
+    got = T.positions(T.evaluated_mesh(obj))
+    exp = T.positions(T.evaluated_mesh(ref))
+    size = T.lattice_size(obj, lat)
+    if len(got) < len(exp):
+        T.check(name, False, f"{len(got)} < {len(exp)} vertices, {smooth_ffd.status(mod)}")
+        return
+    err = np.abs(got[:len(exp)] - exp).max() / size
+    T.check(name, err <= TOL and smooth_ffd.status(mod).startswith("OK"),
+            f"err {err:.2e}, {smooth_ffd.status(mod)}")
+
+
+def source_digest(obj):
+    me = obj.data
+    return (T.positions(me).tobytes(), len(me.polygons), len(me.loops))
+
+
+def test_lattice_edits():
+    obj, lat, ref, mod = scene()
+    before = source_digest(obj)
+    parity("initial", obj, lat, ref, mod)
+    lat.data.points[4].co_deform.z += 0.4
+    T.update()
+    parity("move lattice point", obj, lat, ref, mod)
+    lat.location.x += 0.2
+    lat.rotation_euler.z = 0.3
+    T.update()
+    parity("transform lattice", obj, lat, ref, mod)
+    for o in (obj, ref):   # the twin must stay where the object is
+        o.location.y -= 0.3
+        o.scale = (1.2, 0.9, 1.0)
+    T.update()
+    parity("transform object", obj, lat, ref, mod)
+    lat.data.interpolation_type_v = 'KEY_CARDINAL'
+    T.update()
+    parity("change interpolation", obj, lat, ref, mod)
+    compat.set_modifier_input(mod, "Strength", 0.5)
+    ref.modifiers[0].strength = 0.5
+    obj.update_tag()
+    T.update()
+    parity("change strength", obj, lat, ref, mod)
+    T.check("source mesh untouched by updates", source_digest(obj) == before)
+
+
+def test_levels():
+    obj, lat, ref, mod = scene(level=1)
+    tris0 = base_triangles(obj.data)
+    for level in (1, 2, 4):
+        compat.set_modifier_input(mod, "Viewport Level", level)
+        obj.update_tag()
+        T.update()
+        n = len(T.evaluated_mesh(obj).polygons)
+        T.check(f"level {level} triangle count", n == tris0 * level * level,
+                f"{n} vs {tris0} * {level}^2, {smooth_ffd.status(mod)}")
+        parity(f"level {level} parity", obj, lat, ref, mod)
+
+
+def test_frames_and_shape_keys():
+    obj, lat, ref, mod = scene()
+    p = lat.data.points[13]
+    p.co_deform = (0.0, 0.0, 0.0)
+    p.keyframe_insert("co_deform", frame=1)
+    p.co_deform = (0.3, -0.2, 0.4)
+    p.keyframe_insert("co_deform", frame=11)
+    lat.keyframe_insert("location", frame=1)
+    lat.location.z += 0.3
+    lat.keyframe_insert("location", frame=11)
+    sc = bpy.context.scene
+    for f in (1, 4, 11, 6):
+        sc.frame_set(f)
+        parity(f"frame {f}", obj, lat, ref, mod)
+    # Shape keys only show in the evaluated lattice.
+    sc.frame_set(1)
+    lat.shape_key_add(name="Basis")
+    key = lat.shape_key_add(name="Bend")
+    for i, kp in enumerate(key.data):
+        kp.co = np.array(kp.co) + (0.0, 0.0, 0.1 * (i % 3))
+    key.value = 0.7
+    T.update()
+    parity("lattice shape key", obj, lat, ref, mod)
+
+
+def test_source_edit():
+    obj, lat, ref, mod = scene("cube")
+    obj.data.vertices[0].co.x -= 0.3
+    obj.data.update()
+    T.update()
+    parity("edit source mesh", obj, lat, ref, mod)
+
+
+def test_errors():
+    obj, lat, ref, mod = scene("cube")
+    src = source_digest(obj)
+    nsrc = len(obj.data.vertices)
+    for label, name, value in (("bad backend", "Backend", "gpu9"),
+                               ("non-lattice object", "Lattice", ref),
+                               ("no lattice", "Lattice", None)):
+        compat.set_modifier_input(mod, name, value)
+        obj.update_tag()
+        T.update()
+        st = smooth_ffd.status(mod)
+        n = len(T.evaluated_mesh(obj).vertices)
+        T.check(f"error: {label}", st.startswith("Error") and n == nsrc,
+                f"status {st!r}, shows {n} vertices (source {nsrc})")
+        compat.set_modifier_input(mod, "Backend", "auto")
+        compat.set_modifier_input(mod, "Lattice", lat)
+        obj.update_tag()
+        T.update()
+        T.check(f"recovers after {label}", smooth_ffd.status(mod).startswith("OK"),
+                smooth_ffd.status(mod))
+    # CUDA chosen: fine where the core has a device, else a clear error (never a crash).
+    compat.set_modifier_input(mod, "Backend", "cuda")
+    obj.update_tag()
+    T.update()
+    st = smooth_ffd.status(mod)
+    T.check("cuda backend: OK or reported", st.startswith("OK") or st.startswith("Error"), st)
+    compat.set_modifier_input(mod, "Backend", "auto")
+    # The lattice object deleted.
+    bpy.data.objects.remove(lat)
+    T.update()
+    st = smooth_ffd.status(mod)
+    n = len(T.evaluated_mesh(obj).vertices)
+    T.check("lattice deleted", st.startswith("Error") and n == nsrc, f"{st!r}, {n} vertices")
+    T.check("source untouched by errors", source_digest(obj) == src)
+    # A mesh without faces.
+    me = bpy.data.meshes.new("verts")
+    me.from_pydata([(0, 0, 0), (1, 0, 0)], [(0, 1)], [])
+    edge_obj = T.link(bpy.data.objects.new("edges", me))
+    lat2 = T.make_lattice(name="lat2")
+    m2 = smooth_ffd.add_smooth_ffd(edge_obj, lat2)
+    T.update()
+    T.check("mesh with no faces", smooth_ffd.status(m2).startswith("Error"), smooth_ffd.status(m2))
+
+
+def test_undo():
+    obj, lat, ref, mod = scene()
+    names = (obj.name, lat.name, ref.name)
+    bpy.ops.ed.undo_push(message="before move")
+    lat.data.points[0].co_deform.x -= 0.5
+    T.update()
+    bpy.ops.ed.undo_push(message="moved")
+    obj, lat, ref = (bpy.data.objects[n] for n in names)
+    parity("before undo", obj, lat, ref, obj.modifiers[mod.name])
+    bpy.ops.ed.undo()
+    T.update()
+    obj, lat, ref = (bpy.data.objects[n] for n in names)
+    parity("after undo", obj, lat, ref, obj.modifiers[0])
+    bpy.ops.ed.redo()
+    T.update()
+    obj, lat, ref = (bpy.data.objects[n] for n in names)
+    parity("after redo", obj, lat, ref, obj.modifiers[0])
+
+
+def test_duplicate():
+    obj, lat, ref, mod = scene("cube")
+    dup = T.link(obj.copy())
+    dup.location.x += 2.0
+    T.update()
+    r1 = engine.result_object(obj, obj.modifiers[0], create=False)
+    r2 = engine.result_object(dup, dup.modifiers[0], create=False)
+    T.check("duplicate gets its own result", r1 is not None and r2 is not None and r1 != r2,
+            f"{r1} {r2}")
+    parity("original after duplicate", obj, lat, ref, obj.modifiers[0])
+
+
+def test_save_reload():
+    obj, lat, ref, mod = scene()
+    lat.data.points[2].co_deform.y += 0.3
+    T.update()
+    before = T.positions(T.evaluated_mesh(obj))
+    path = os.path.join(tempfile.mkdtemp(), "sffd_live.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    obj, lat, ref = (bpy.data.objects[n] for n in ("src", "lat", "src.ref"))
+    T.update()
+    after = T.positions(T.evaluated_mesh(obj))
+    T.check("reload keeps result", after.shape == before.shape and np.abs(after - before).max() < 1e-6)
+    parity("reload still live: parity", obj, lat, ref, obj.modifiers[0])
+    lat.data.points[5].co_deform.x += 0.2
+    T.update()
+    parity("reload still live: edit", obj, lat, ref, obj.modifiers[0])
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    last = T.positions(T.evaluated_mesh(obj))
+    # Without the add-on the file still shows the last result.
+    smooth_ffd.unregister()
+    try:
+        bpy.ops.wm.open_mainfile(filepath=path)
+        obj = bpy.data.objects["src"]
+        T.update()
+        shown = T.positions(T.evaluated_mesh(obj))
+        T.check("without add-on: last result shown",
+                shown.shape == last.shape and np.abs(shown - last).max() < 1e-6)
+    finally:
+        smooth_ffd.register()
+
+
+def test_apply_remove():
+    obj, lat, ref, mod = scene(level=1)
+    old = obj.data
+    old_digest = source_digest(obj)
+    tris0 = base_triangles(old)
+    render_level = compat.get_modifier_input(mod, "Render Level")
+    smooth_ffd.apply_smooth_ffd(obj, mod)
+    T.update()
+    n = len(obj.data.polygons)
+    T.check("apply: modifier gone", len(obj.modifiers) == 0)
+    T.check("apply: render-level mesh", n == tris0 * render_level ** 2, f"{n} tris")
+    T.check("apply: result object deleted",
+            not any(o.get(engine.OWNER_KEY) is not None for o in bpy.data.objects))
+    T.check("apply: old mesh untouched", source_digest_mesh(old) == old_digest)
+    obj, lat, ref, mod = scene()
+    smooth_ffd.remove_smooth_ffd(obj, mod)
+    T.update()
+    got = T.positions(T.evaluated_mesh(obj))
+    T.check("remove: shows the source", np.array_equal(got, T.positions(obj.data)))
+
+
+def source_digest_mesh(me):
+    return (T.positions(me).tobytes(), len(me.polygons), len(me.loops))
+
+
+def main():
+    T.setup()
+    for fn in (test_lattice_edits, test_levels, test_frames_and_shape_keys, test_source_edit,
+               test_errors, test_undo, test_duplicate, test_save_reload, test_apply_remove):
+        T.run(fn.__name__, fn)
+    T.finish()
+
+
+main()

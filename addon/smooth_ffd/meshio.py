@@ -64,6 +64,9 @@ def _vertex_weights(mesh, group_index, invert):
     return logic.vertex_weights(len(mesh.vertices), group_index, idx, grp, wts, invert)
 
 
+SOURCE_FACE_ATTRIBUTE = "smooth_ffd_source_face"
+
+
 # --- result mesh ------------------------------------------------------------------------------
 
 def write_topology(mesh, res, source, materials):
@@ -81,6 +84,9 @@ def write_topology(mesh, res, source, materials):
     mesh.polygons.foreach_set("material_index",
                               np.ascontiguousarray(source.material_index[face_index], np.int32))
     mesh.update(calc_edges=True)
+    # Which source face each output triangle came from: for tools, tests and debugging.
+    attr = mesh.attributes.new(SOURCE_FACE_ATTRIBUTE, 'INT', 'FACE')
+    attr.data.foreach_set("value", np.ascontiguousarray(res.face_index, np.int32))
     if res.uvs is not None:
         layer = mesh.uv_layers.new(name=source.uv_name or "UVMap")
         layer.data.foreach_set("uv", np.ascontiguousarray(res.uvs, np.float32).ravel())

@@ -175,3 +175,10 @@ def timed(fn, *a, **kw):
     t = time.perf_counter()
     out = fn(*a, **kw)
     return out, 1e3 * (time.perf_counter() - t)
+
+
+def triangles_like_loops(mesh):
+    """(C,) vertex index of every corner (loop), for polygon meshes."""
+    loops = np.empty(len(mesh.loops), dtype=np.int32)
+    mesh.loops.foreach_get("vertex_index", loops)
+    return loops

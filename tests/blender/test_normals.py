@@ -1,0 +1,104 @@
+"""Normals of the result: at original vertices the output corner normals equal the
+cofactor-transformed input split normals (Barr 1984); sharp edges stay split, smooth ones
+stay smooth. Exact custom normals are forced on 3.4-4.0 (viewport mode would skip them)."""
+import os
+import sys
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
+import sffd_testlib as T  # noqa: E402
+import smooth_ffd  # noqa: E402
+from smooth_ffd import compat, latticeio, logic, meshio  # noqa: E402
+
+ANGLE_TOL = 2e-3   # radians; 3.4-4.4 store custom normals as 16-bit angles in a normal space
+SPLIT_ANGLE = 1e-2
+
+
+def cofactor(j):
+    """(N, 3, 3) cofactor matrices: columns J2 x J3, J3 x J1, J1 x J2 of J's columns."""
+    c1, c2, c3 = j[:, :, 0], j[:, :, 1], j[:, :, 2]
+    return np.stack([np.cross(c2, c3), np.cross(c3, c1), np.cross(c1, c2)], axis=2)
+
+
+def unit(v):
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def distinct_count(normals):
+    """How many directions differ by more than SPLIT_ANGLE among (k, 3) unit vectors."""
+    reps = []
+    for n in normals:
+        if not any(np.dot(n, r) > np.cos(SPLIT_ANGLE) for r in reps):
+            reps.append(n)
+    return len(reps)
+
+
+def run_mesh(kind, level):
+    T.clear()
+    obj = T.make_mesh(kind)
+    lat = T.make_lattice((3, 3, 3), "KEY_BSPLINE", scale=(1.6, 1.6, 1.6), jitter=0.2, seed=7)
+    mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=level, render_level=level)
+    compat.set_modifier_input(mod, "Exact Normals", True)
+    obj.update_tag()
+    T.update()
+    label = f"{kind} L{level}"
+    status = smooth_ffd.status(mod)
+    if not status.startswith("OK"):
+        T.check(label, False, status)
+        return
+    src = obj.data
+    nv = len(src.vertices)
+    in_normals = T.corner_normals(src)
+    in_verts = T.triangles_like_loops(src)
+    poly_of_loop = np.repeat(np.arange(len(src.polygons)),
+                             [len(p.vertices) for p in src.polygons])
+    # Expected: cof(J) n at each original vertex, J of the whole map in object space.
+    rest, pts, interp, _shape, _key = latticeio.read_lattice(lat, None)
+    l2o = logic.lattice_to_object(np.array(obj.matrix_world), np.array(lat.matrix_world))
+    sf = smooth_ffd.core.smoothffd()
+    lattice = sf.BlenderLattice(rest, pts, interpolation=interp, lattice_to_object=l2o)
+    _pos, jac = lattice.evaluate(T.positions(src))
+    expected = unit(np.einsum("cij,cj->ci", cofactor(jac)[in_verts], in_normals))
+    key_in = {(int(f), int(v)): c for c, (f, v) in enumerate(zip(poly_of_loop, in_verts))}
+
+    out = T.evaluated_mesh(obj)
+    out_normals = T.corner_normals(out)
+    out_verts = T.triangles(out).ravel()
+    face_attr = out.attributes[meshio.SOURCE_FACE_ATTRIBUTE]
+    faces = np.empty(len(out.polygons), dtype=np.int32)
+    face_attr.data.foreach_get("value", faces)
+    out_face = np.repeat(faces, 3)
+    worst, count = 0.0, 0
+    for k in np.nonzero(out_verts < nv)[0]:
+        c = key_in[(int(out_face[k]), int(out_verts[k]))]
+        ang = np.arccos(np.clip(np.dot(out_normals[k], expected[c]), -1, 1))
+        worst, count = max(worst, ang), count + 1
+    T.check(f"{label}: cofactor normals at original vertices", worst <= ANGLE_TOL,
+            f"worst {worst:.2e} rad over {count} corners")
+
+    # Split structure: at each output vertex, as many distinct normals as the input had
+    # there (original vertices), and one for every new vertex of a smooth mesh.
+    by_vertex_out = {}
+    for k, v in enumerate(out_verts):
+        by_vertex_out.setdefault(int(v), []).append(out_normals[k])
+    by_vertex_in = {}
+    for c, v in enumerate(in_verts):
+        by_vertex_in.setdefault(int(v), []).append(in_normals[c])
+    bad = [v for v in range(nv)
+           if distinct_count(by_vertex_out[v]) != distinct_count(by_vertex_in[v])]
+    T.check(f"{label}: splits kept at original vertices", not bad, f"{len(bad)} differ")
+    if kind in ("suzanne", "uvsphere"):
+        split = [v for v, ns in by_vertex_out.items() if distinct_count(ns) > 1]
+        T.check(f"{label}: smooth mesh stays smooth", not split, f"{len(split)} split vertices")
+
+
+def main():
+    T.setup()
+    for kind in ("suzanne", "uvsphere", "cylinder", "cube"):
+        for level in (2, 3):
+            T.run(f"{kind} L{level}", run_mesh, kind, level)
+    T.finish()
+
+
+main()

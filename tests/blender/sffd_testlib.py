@@ -33,7 +33,9 @@ def setup():
 def args():
     """Arguments after `--` (blender) or after the script (python)."""
     argv = sys.argv
-    return argv[argv.index("--") + 1:] if "--" in argv else argv[1:]
+    if "--" in argv:
+        return argv[argv.index("--") + 1:]
+    return [] if "--python" in argv else argv[1:]   # blender's own flags are not ours
 
 
 def clear():

@@ -1,0 +1,199 @@
+// The whole Python surface of the native core, thin by design: the `smoothffd` package
+// validates every argument before it gets here (python/smoothffd/), these bindings only move
+// buffers. Heavy work runs with the GIL released; results are numpy arrays allocated first
+// and filled in place (no copy).
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <memory>
+#include <stdexcept>
+
+#include "smoothffd/eval/cpu_evaluator.hpp"
+#include "smoothffd/lattice/lattice_spec.hpp"
+#include "smoothffd/plan/plan.hpp"
+#ifdef SMOOTHFFD_HAVE_CUDA
+#include "smoothffd/cuda/cuda_evaluator.hpp"
+#endif
+
+namespace py = pybind11;
+using namespace sffd;
+
+template <class T>
+using Arr = py::array_t<T, py::array::c_style | py::array::forcecast>;
+
+namespace {
+
+template <class T>
+std::vector<T> to_vector(const Arr<T>& a) {
+  return std::vector<T>(a.data(), a.data() + a.size());
+}
+
+void set_map(LatticeSpec& spec, const Arr<double>& m) {
+  if (m.size() != 12) throw std::invalid_argument("object_to_param: expected a 3 x 4 matrix");
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) spec.object_to_param[r][c] = m.data()[4 * r + c];
+}
+
+template <class T>
+py::array_t<T> copy_out(const std::vector<T>& v, std::vector<py::ssize_t> shape) {
+  py::array_t<T> a(shape);
+  if (!v.empty()) std::copy(v.begin(), v.end(), a.mutable_data());
+  return a;
+}
+
+py::dict times_dict(const StageTimes& t) {
+  py::dict d;
+  for (auto& kv : t) d[py::str(kv.first)] = kv.second;
+  return d;
+}
+
+// Evaluates D with any backend into fresh numpy arrays.
+py::tuple run_evaluator(Evaluator& ev, const Arr<float>& D) {
+  const Plan& plan = ev.plan();
+  if (D.ndim() != 2 || D.shape(1) != 3 || D.shape(0) != (py::ssize_t)plan.dims[0] * plan.dims[1] * plan.dims[2])
+    throw std::invalid_argument("control values: expected an (nu*nv*nw, 3) array matching the plan");
+  py::array_t<float> pos({(py::ssize_t)plan.output_vertices, (py::ssize_t)3});
+  py::array_t<float> nrm({(py::ssize_t)plan.output_triangles, (py::ssize_t)3, (py::ssize_t)3});
+  const float* d = D.data();
+  float* p = pos.mutable_data();
+  float* n = nrm.mutable_data();
+  StageTimes t;
+  {
+    py::gil_scoped_release release;
+    t = ev.evaluate(d, p, n);
+  }
+  return py::make_tuple(pos, nrm, times_dict(t));
+}
+
+}  // namespace
+
+PYBIND11_MODULE(_core, m) {
+  m.doc() = "smoothffd native core: lattice bases, plan building, CPU and CUDA evaluators";
+
+  py::class_<LatticeSpec, std::shared_ptr<LatticeSpec>>(m, "LatticeSpec")
+      .def_static(
+          "bspline",
+          [](std::vector<int> degree, std::vector<Arr<double>> knots, std::vector<int> counts,
+             Arr<double> object_to_param) {
+            auto s = std::make_shared<LatticeSpec>();
+            for (int a = 0; a < 3; ++a) s->axes[a] = AxisBasis::bspline(degree[a], to_vector(knots[a]), counts[a]);
+            set_map(*s, object_to_param);
+            return s;
+          },
+          py::arg("degree"), py::arg("knots"), py::arg("counts"), py::arg("object_to_param"))
+      .def_static(
+          "blender",
+          [](std::vector<std::string> types, std::vector<int> counts, Arr<double> object_to_param) {
+            auto s = std::make_shared<LatticeSpec>();
+            for (int a = 0; a < 3; ++a) s->axes[a] = AxisBasis::blender(parse_blender_interp(types[a]), counts[a]);
+            set_map(*s, object_to_param);
+            return s;
+          },
+          py::arg("interpolation"), py::arg("counts"), py::arg("object_to_param"))
+      .def("planes",
+           [](const LatticeSpec& s) {
+             py::list out;
+             for (int a = 0; a < 3; ++a) {
+               auto p = s.axes[a].planes();
+               out.append(copy_out(p, {(py::ssize_t)p.size()}));
+             }
+             return out;
+           })
+      .def_property_readonly("degrees",
+                             [](const LatticeSpec& s) {
+                               return py::make_tuple(s.axes[0].degree(), s.axes[1].degree(), s.axes[2].degree());
+                             })
+      .def("evaluate",
+           [](const LatticeSpec& s, Arr<double> points, Arr<double> D, Arr<double> weights) {
+             py::ssize_t N = points.size() / 3;
+             if ((size_t)D.size() != 3 * (size_t)s.count())
+               throw std::invalid_argument("control values: wrong size for this lattice");
+             if (weights.size() != N) throw std::invalid_argument("weights: one per point");
+             py::array_t<double> F({N, (py::ssize_t)3}), J({N, (py::ssize_t)3, (py::ssize_t)3});
+             const double *p = points.data(), *d = D.data(), *w = weights.data();
+             double *f = F.mutable_data(), *j = J.mutable_data();
+             {
+               py::gil_scoped_release release;
+               for (py::ssize_t i = 0; i < N; ++i) s.evaluate(p + 3 * i, d, w[i], f + 3 * i, j + 9 * i);
+             }
+             return py::make_tuple(F, J);
+           },
+           py::arg("points"), py::arg("values"), py::arg("weights"));
+
+  py::class_<Plan, std::shared_ptr<Plan>>(m, "Plan")
+      .def_property_readonly("input_vertices", [](const Plan& p) { return p.input_vertices; })
+      .def_property_readonly("sub_vertices", [](const Plan& p) { return p.sub_vertices; })
+      .def_property_readonly("patches", [](const Plan& p) { return p.patches; })
+      .def_property_readonly("edges", [](const Plan& p) { return p.edges; })
+      .def_property_readonly("samples", [](const Plan& p) { return p.samples; })
+      .def_property_readonly("fit_degree", [](const Plan& p) { return p.fit_degree; })
+      .def_property_readonly("level", [](const Plan& p) { return p.level; })
+      .def_property_readonly("output_vertices", [](const Plan& p) { return p.output_vertices; })
+      .def_property_readonly("output_triangles", [](const Plan& p) { return p.output_triangles; })
+      .def_property_readonly("dims", [](const Plan& p) { return py::make_tuple(p.dims[0], p.dims[1], p.dims[2]); })
+      .def_property_readonly("bytes", &Plan::bytes)
+      .def_property_readonly("build_ms",
+                             [](const Plan& p) { return times_dict(p.build_ms); })
+      .def("rest_positions", [](const Plan& p) { return copy_out(p.rest_positions, {(py::ssize_t)p.output_vertices, 3}); })
+      .def("triangles", [](const Plan& p) { return copy_out(p.triangles, {(py::ssize_t)p.output_triangles, 3}); })
+      .def("face_index", [](const Plan& p) { return copy_out(p.face_index, {(py::ssize_t)p.output_triangles}); })
+      .def("uvs",
+           [](const Plan& p) -> py::object {
+             if (p.uvs.empty()) return py::none();
+             return copy_out(p.uvs, {(py::ssize_t)p.output_triangles, 3, 2});
+           })
+      .def("sharp_edges", [](const Plan& p) { return copy_out(p.sharp_edges, {(py::ssize_t)p.sharp_edges.size() / 2, 2}); })
+      .def("patch_face", [](const Plan& p) { return copy_out(p.patch_face, {(py::ssize_t)p.patches}); })
+      .def("edge_flags", [](const Plan& p) { return copy_out(p.edge_flags, {(py::ssize_t)p.edges}); })
+      .def("edge_vertex", [](const Plan& p) { return copy_out(p.edge_vertex, {(py::ssize_t)p.edges, 2}); })
+      .def("patch_vertex", [](const Plan& p) { return copy_out(p.patch_vertex, {(py::ssize_t)p.patches, 3}); })
+      .def("fit_matrix", [](const Plan& p) { return copy_out(p.fit_matrix, {10, (py::ssize_t)p.columns}); });
+
+  m.def(
+      "build_plan",
+      [](Arr<double> positions, Arr<int> corner_vertex, Arr<int> face_offset,
+         std::optional<Arr<float>> corner_normals, std::optional<Arr<float>> uvs,
+         std::optional<Arr<float>> vertex_weights, const LatticeSpec& spec, int level,
+         double sharp_angle_degrees) {
+        InputMesh mesh;
+        mesh.positions = to_vector(positions);
+        mesh.corner_vertex = to_vector(corner_vertex);
+        mesh.face_offset = to_vector(face_offset);
+        if (corner_normals) mesh.corner_normal = to_vector(*corner_normals);
+        if (uvs) mesh.corner_uv = to_vector(*uvs);
+        if (vertex_weights) mesh.vertex_weight = to_vector(*vertex_weights);
+        PlanOptions opt;
+        opt.level = level;
+        opt.sharp_angle_degrees = sharp_angle_degrees;
+        std::shared_ptr<Plan> plan;
+        {
+          py::gil_scoped_release release;
+          plan = std::make_shared<Plan>(build_plan(mesh, spec, opt));
+        }
+        return plan;
+      },
+      py::arg("positions"), py::arg("corner_vertices"), py::arg("face_offsets"),
+      py::arg("corner_normals"), py::arg("uvs"), py::arg("vertex_weights"), py::arg("lattice"),
+      py::arg("level"), py::arg("sharp_angle_degrees") = 1.0);
+
+  py::class_<CpuEvaluator, std::shared_ptr<CpuEvaluator>>(m, "CpuEvaluator")
+      .def(py::init([](std::shared_ptr<Plan> plan, int threads) {
+             return std::make_shared<CpuEvaluator>(plan, threads);
+           }),
+           py::arg("plan"), py::arg("threads") = 0, py::keep_alive<1, 2>())
+      .def_property_readonly("threads", &CpuEvaluator::threads)
+      .def("evaluate", [](CpuEvaluator& ev, Arr<float> D) { return run_evaluator(ev, D); },
+           py::arg("values"));
+
+#ifdef SMOOTHFFD_HAVE_CUDA
+  m.attr("cuda_compiled") = true;
+  m.def("cuda_status", []() { return cuda_status(); },
+        "(usable, message): whether a CUDA device can run the CUDA evaluator, and why not");
+#else
+  m.attr("cuda_compiled") = false;
+  m.def("cuda_status", []() {
+    return std::make_pair(false, std::string("smoothffd was built without CUDA (nvcc not found at build time)"));
+  });
+#endif
+}

@@ -1,0 +1,62 @@
+#include "smoothffd/eval/cpu_evaluator.hpp"
+
+#include <chrono>
+
+#include "smoothffd/core/parallel.hpp"
+#include "smoothffd/eval/stages.hpp"
+
+namespace sffd {
+
+CpuEvaluator::CpuEvaluator(std::shared_ptr<const Plan> plan, int threads)
+    : plan_(std::move(plan)), threads_(threads > 0 ? threads : default_threads()) {
+  const Plan& p = *plan_;
+  sample_value_.resize(3 * (size_t)p.samples);
+  sample_jacobian_.resize(9 * (size_t)p.samples);
+  edge_control_.resize(6 * (size_t)p.edges);
+  patch_control_.resize(30 * (size_t)p.patches);
+  patch_normal_.resize(30 * (size_t)p.patches);
+}
+
+StageTimes CpuEvaluator::evaluate(const float* D, float* positions, float* corner_normals) {
+  using Clock = std::chrono::steady_clock;
+  const PlanView pv = host_view(*plan_);
+  FrameView fv{sample_value_.data(), sample_jacobian_.data(), edge_control_.data(),
+               patch_control_.data(), patch_normal_.data(), positions, corner_normals};
+  StageTimes times;
+  auto t0 = Clock::now();
+  auto lap = [&](const char* name) {
+    auto t1 = Clock::now();
+    times.emplace_back(name, std::chrono::duration<double, std::milli>(t1 - t0).count());
+    t0 = t1;
+  };
+  parallel_for(pv.samples, threads_, [&](long long b, long long e) {
+    for (long long s = b; s < e; ++s)
+      sample_point(pv, D, (int)s, fv.sample_value + 3 * s, fv.sample_jacobian + 9 * s);
+  });
+  lap("sampling");
+  parallel_for(pv.edges, threads_, [&](long long b, long long e) {
+    for (long long i = b; i < e; ++i) adjust_edge(pv, fv, (int)i);
+  });
+  lap("edge_adjustment");
+  parallel_for(pv.patches, threads_, [&](long long b, long long e) {
+    for (long long p = b; p < e; ++p) fit_patch(pv, fv, (int)p);
+  });
+  lap("fitting");
+  parallel_for(pv.output_vertices, threads_, [&](long long b, long long e) {
+    for (long long o = b; o < e; ++o) tessellate_position(pv, fv, (int)o);
+  });
+  lap("tessellate_positions");
+  const int G = pv.grid, LL = pv.level * pv.level;
+  parallel_for(pv.patches, threads_, [&](long long b, long long e) {
+    std::vector<V3> normals(G);
+    for (long long p = b; p < e; ++p) {
+      for (int g = 0; g < G; ++g) normals[g] = tessellate_normal(pv, fv, (int)p, g);
+      float* out = corner_normals + 9 * p * LL;
+      for (int i = 0; i < 3 * LL; ++i) store3(out + 3 * i, normals[pv.local_triangles[i]]);
+    }
+  });
+  lap("tessellate_normals");
+  return times;
+}
+
+}  // namespace sffd

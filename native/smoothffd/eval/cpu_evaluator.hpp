@@ -1,0 +1,22 @@
+// Multithreaded CPU evaluator: runs the stages of eval/stages.hpp over all elements.
+#pragma once
+
+#include "smoothffd/eval/evaluator.hpp"
+
+namespace sffd {
+
+class CpuEvaluator : public Evaluator {
+ public:
+  CpuEvaluator(std::shared_ptr<const Plan> plan, int threads = 0);
+  std::string name() const override { return "cpu"; }
+  const Plan& plan() const override { return *plan_; }
+  StageTimes evaluate(const float* D, float* positions, float* corner_normals) override;
+  int threads() const { return threads_; }
+
+ private:
+  std::shared_ptr<const Plan> plan_;
+  int threads_;
+  std::vector<float> sample_value_, sample_jacobian_, edge_control_, patch_control_, patch_normal_;
+};
+
+}  // namespace sffd

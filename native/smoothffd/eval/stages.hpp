@@ -1,0 +1,168 @@
+// The per-frame stages of smooth FFD, one function per element, shared verbatim by the CPU
+// evaluator (loops) and the CUDA evaluator (one thread per element):
+//   1. sample_point      (sec. 5.1)  F and its Jacobian at one sample point
+//   2. adjust_edge       (sec. 4.2)  fitted edge control points, moved to the tangent plane
+//                                     (smooth end) or the crease line (sharp end)
+//   3. fit_patch         (Eqs. 11-13, 4.2)  geometry + normal patch of one sub-triangle
+//   4. tessellate_*      (Eq. 14)    output positions and normals
+#pragma once
+
+#include "smoothffd/core/hd.hpp"
+#include "smoothffd/eval/plan_view.hpp"
+#include "smoothffd/lattice/tensor_eval.hpp"
+#include "smoothffd/plan/bezier.hpp"
+
+namespace sffd {
+
+// 1. F(p) = p + w sum W(s(p)) D and J = dF/dp at sample s.
+SFFD_HD void sample_point(const PlanView& pv, const float* D, int s, float* F, float* J) {
+  float p[3] = {pv.sample_position[3 * s], pv.sample_position[3 * s + 1], pv.sample_position[3 * s + 2]};
+  uint32_t packed = pv.sample_piece[s];
+  int idx[3][kMaxTerms], cnt[3];
+  float w[3][kMaxTerms], dw[3][kMaxTerms];
+  for (int a = 0; a < 3; ++a) {
+    const AxisPieceF& pc = pv.pieces[pv.axis_offset[a] + ((packed >> (10 * a)) & 1023u)];
+    const float* m = pv.param_map + 4 * a;
+    float t = ((m[0] * p[0] + m[1] * p[1] + m[2] * p[2] + m[3]) - pc.origin) * pc.inv_scale;
+    if (pc.degree == 0) t = 0.0f;
+    cnt[a] = pc.count;
+    for (int k = 0; k < pc.count; ++k) {
+      float v = 0.0f, d = 0.0f;
+      for (int q = pc.degree; q >= 0; --q) {
+        d = d * t + v;
+        v = v * t + pc.coef[k][q];
+      }
+      idx[a][k] = pc.index[k];
+      w[a][k] = v;
+      dw[a][k] = d * pc.inv_scale;
+    }
+  }
+  float value[3], grad[9], A[9];
+  tensor_eval<float, float>(idx[0], w[0], dw[0], cnt[0], idx[1], w[1], dw[1], cnt[1], idx[2], w[2],
+                            dw[2], cnt[2], D, pv.dims[1], pv.dims[2], value, grad);
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) A[3 * r + c] = pv.param_map[4 * r + c];
+  compose_deformation<float>(p, pv.sample_weight[s], value, grad, A, F, J);
+}
+
+// Moves control point c next to corner P: onto the tangent plane of the (averaged) normal at
+// a smooth end, onto the line through P along n0 x n1 at a sharp end (paper Fig. 4).
+SFFD_HD V3 adjust_control_point(V3 c, V3 P, V3 n0, V3 n1, bool has_n1, bool sharp) {
+  if (sharp && has_n1) {
+    V3 t = cross(n0, n1);
+    if (dot(t, t) > 1e-12f) {
+      t = (1.0f / sqrtf(dot(t, t))) * t;
+      return P + dot(c - P, t) * t;
+    }
+  }
+  V3 n = has_n1 ? normalized_or(n0 + n1, n0) : n0;
+  return c - dot(c - P, n) * n;
+}
+
+// Deformed adjustment normal of patch p at corner slot k (Eq. 3).
+SFFD_HD V3 deformed_adjust_normal(const PlanView& pv, const float* J, int p, int k) {
+  V3 n = load3(pv.patch_adjust_normal + 9 * (long long)p + 3 * k);
+  return normalized_or(cofactor_apply(J, n), n);
+}
+
+// 2. Edge control points from the four constraint samples (cubic interpolation at 0, 1/3,
+// 2/3, 1), then adjusted at both ends. Once per edge, so both patches on it share the result.
+SFFD_HD void adjust_edge(const PlanView& pv, const FrameView& fv, int e) {
+  int a = pv.edge_vertex[2 * e], b = pv.edge_vertex[2 * e + 1];
+  V3 Pa = load3(fv.sample_value + 3 * (long long)a), Pb = load3(fv.sample_value + 3 * (long long)b);
+  V3 Q1 = load3(fv.sample_value + 3 * (long long)pv.edge_constraint[2 * e]);
+  V3 Q2 = load3(fv.sample_value + 3 * (long long)pv.edge_constraint[2 * e + 1]);
+  const float s6 = 1.0f / 6.0f;
+  V3 c[2] = {s6 * (-5.0f * Pa + 18.0f * Q1 - 9.0f * Q2 + 2.0f * Pb),
+             s6 * (2.0f * Pa - 9.0f * Q1 + 18.0f * Q2 - 5.0f * Pb)};
+  uint8_t flags = pv.edge_flags[e];
+  if (!(flags & kNonManifold)) {
+    int p0 = pv.edge_patch[2 * e], p1 = pv.edge_patch[2 * e + 1];
+    for (int end = 0; end < 2; ++end) {
+      int v = end ? b : a;
+      const float* J = fv.sample_jacobian + 9 * (long long)v;
+      V3 n0 = deformed_adjust_normal(pv, J, p0, pv.edge_slot[4 * e + end]);
+      V3 n1 = p1 >= 0 ? deformed_adjust_normal(pv, J, p1, pv.edge_slot[4 * e + 2 + end]) : n0;
+      c[end] = adjust_control_point(c[end], end ? Pb : Pa, n0, n1, p1 >= 0, (flags >> end) & 1);
+    }
+  }
+  store3(fv.edge_control + 6 * (long long)e, c[0]);
+  store3(fv.edge_control + 6 * (long long)e + 3, c[1]);
+}
+
+// 3. Constrained fit of the geometry and normal patches of patch p together (Eq. 13), then
+// the adjusted edge control points replace the fitted ones and the centre moves with them.
+//
+// The paper leaves the centre b111 where the fit put it. We move it by 3/2 of the mean motion
+// of the six edge control points: PN triangles' b111 = E + (E - V)/2 written as an update, so
+// a rest-pose patch with exact normals reproduces the PN centre (a rest-pose icosphere comes
+// out far closer to its sphere than with the fitted centre; see tests/test_sphere.py).
+SFFD_HD void fit_patch(const PlanView& pv, const FrameView& fv, int p) {
+  const int K = pv.columns;
+  const int* cols = pv.patch_samples + (long long)p * K;
+  V3 rn[3];
+  for (int k = 0; k < 3; ++k) rn[k] = load3(pv.patch_render_normal + 9 * (long long)p + 3 * k);
+  V3 g[10], nn[10];
+  for (int r = 0; r < 10; ++r) g[r] = nn[r] = v3(0, 0, 0);
+  for (int k = 0; k < K; ++k) {
+    int s = cols[k];
+    V3 x = load3(fv.sample_value + 3 * (long long)s);
+    const float* b = pv.column_bary + 3 * k;
+    V3 n0 = b[0] * rn[0] + b[1] * rn[1] + b[2] * rn[2];
+    V3 n = normalized_or(cofactor_apply(fv.sample_jacobian + 9 * (long long)s, n0), n0);
+    n = normalized_or(n, rn[0]);
+    for (int r = 0; r < 10; ++r) {
+      float m = pv.fit_matrix[r * K + k];
+      g[r] += m * x;
+      nn[r] += m * n;
+    }
+  }
+  V3 fitted_mean = v3(0, 0, 0), adjusted_mean = v3(0, 0, 0);
+  for (int k = 0; k < 3; ++k) {
+    g[k] = load3(fv.sample_value + 3 * (long long)pv.patch_vertex[3 * p + k]);  // exact corners
+    int e = pv.patch_edge[3 * p + k];
+    bool rev = pv.patch_edge_reversed[3 * p + k];
+    V3 near_a = load3(fv.edge_control + 6 * (long long)e), near_b = load3(fv.edge_control + 6 * (long long)e + 3);
+    int i0 = edge_control_index(k, false), i1 = edge_control_index(k, true);
+    fitted_mean += g[i0] + g[i1];
+    g[i0] = rev ? near_b : near_a;
+    g[i1] = rev ? near_a : near_b;
+    adjusted_mean += g[i0] + g[i1];
+  }
+  g[kCentre] += 0.25f * (adjusted_mean - fitted_mean);  // 3/2 * (mean of 6 differences)
+  float* out_g = fv.patch_control + 30 * (long long)p;
+  float* out_n = fv.patch_normal + 30 * (long long)p;
+  for (int r = 0; r < 10; ++r) {
+    store3(out_g + 3 * r, g[r]);
+    store3(out_n + 3 * r, nn[r]);
+  }
+}
+
+// 4a. Output vertex o: input and clip vertices are the deformed samples themselves; edge and
+// interior points are evaluated on their owner patch (Eq. 14 row).
+SFFD_HD void tessellate_position(const PlanView& pv, const FrameView& fv, int o) {
+  V3 x;
+  if (o < pv.sub_vertices) {
+    x = load3(fv.sample_value + 3 * (long long)o);
+  } else {
+    long long i = o - pv.sub_vertices;
+    int p = pv.output_owner[2 * i], g = pv.output_owner[2 * i + 1];
+    const float* B = pv.grid_basis + 10 * g;
+    const float* cp = fv.patch_control + 30 * (long long)p;
+    x = v3(0, 0, 0);
+    for (int k = 0; k < 10; ++k) x += B[k] * load3(cp + 3 * k);
+  }
+  store3(fv.positions + 3 * (long long)o, x);
+}
+
+// 4b. Unit normal of patch p at grid point g.
+SFFD_HD V3 tessellate_normal(const PlanView& pv, const FrameView& fv, int p, int g) {
+  const float* B = pv.grid_basis + 10 * g;
+  const float* cp = fv.patch_normal + 30 * (long long)p;
+  V3 n = v3(0, 0, 0);
+  for (int k = 0; k < 10; ++k) n += B[k] * load3(cp + 3 * k);
+  V3 fallback = normalized_or(load3(cp) + load3(cp + 3) + load3(cp + 6), v3(0, 0, 1));
+  return normalized_or(n, fallback);
+}
+
+}  // namespace sffd

@@ -1,0 +1,62 @@
+// One axis of a lattice: a piecewise polynomial partition of unity over the axis parameter s.
+//
+// Both lattice kinds (the paper's B-spline volume, Eq. 1, and Blender's Lattice modifier) are
+// tensor products of three of these, so they share the evaluation, the knot planes used for
+// clipping, and the GPU tables. A piece covers [lo, hi) of s; on it the weight of term k is
+//   w_k(t) = sum_p coef[k][p] t^p,  t = (s - origin) / scale,
+// applied to control index index[k]. Pieces cover the whole real line: the first and last are
+// the constant continuation outside the lattice.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace sffd {
+
+constexpr int kMaxAxisDegree = 5;
+constexpr int kMaxTerms = kMaxAxisDegree + 1;  // Blender's cubic stencil needs 4
+
+struct AxisPiece {
+  double lo = 0, hi = 0;         // interval of s ([lo, hi); the outer pieces are unbounded)
+  double origin = 0, scale = 1;  // local parameter t = (s - origin) / scale
+  int degree = 0;                // highest power with a non-zero coefficient
+  int count = 0;                 // number of terms
+  int index[kMaxTerms] = {};     // control point index of each term
+  double coef[kMaxTerms][kMaxTerms] = {};  // coef[term][power]
+};
+
+enum class BlenderInterp { Linear, Cardinal, CatmullRom, BSpline };
+
+// Parses "LINEAR", "CARDINAL", "CATMULL_ROM", "BSPLINE" (Blender's KEY_* names without KEY_).
+BlenderInterp parse_blender_interp(const std::string& name);
+
+class AxisBasis {
+ public:
+  // Open or custom B-spline basis: `knots` has n_ctrl + degree + 1 non-decreasing values; the
+  // domain is [knots[degree], knots[n_ctrl]]; outside it the boundary weights continue.
+  static AxisBasis bspline(int degree, const std::vector<double>& knots, int n_ctrl);
+  // Blender's per-axis weights in lattice index space s = (q - f) / d, stencil indices
+  // clamped into [0, n - 1]; a one-point axis is the constant weight 1 on index 0.
+  static AxisBasis blender(BlenderInterp type, int n_points);
+
+  int n_ctrl() const { return n_ctrl_; }
+  int degree() const { return degree_; }  // max over pieces: enters the fitting degree
+  const std::vector<AxisPiece>& pieces() const { return pieces_; }
+  // Values of s where the polynomial piece changes (the knot planes of this axis), ascending.
+  std::vector<double> planes() const;
+  // Index of the piece used at s. A point exactly on a plane takes the piece above it, except
+  // at the top of the last polynomial piece, which keeps it (so the Jacobian on the boundary
+  // of a B-spline box is the one-sided inner one).
+  int find_piece(double s) const;
+
+  // Weights and d/ds of the terms of piece `pi` at s (arrays of kMaxTerms).
+  void weights(int pi, double s, double* w, double* dw) const;
+
+ private:
+  void finish();  // merge duplicate indices, drop zero terms, merge equal constant pieces
+  int n_ctrl_ = 0;
+  int degree_ = 0;
+  std::vector<AxisPiece> pieces_;
+};
+
+}  // namespace sffd

@@ -1,0 +1,29 @@
+// The structure of a lattice (everything but its control values): three axis bases and the
+// affine map from object space into parameter space. Both lattice kinds reduce to
+//   F(p) = p + sum_ijk W_ijk(s(p)) D_ijk,  s(p) = A p + b,
+// with D the per-frame control values (displacements). A plan is built per LatticeSpec.
+#pragma once
+
+#include <array>
+#include <vector>
+
+#include "smoothffd/lattice/axis_basis.hpp"
+
+namespace sffd {
+
+struct LatticeSpec {
+  std::array<AxisBasis, 3> axes;
+  double object_to_param[3][4] = {};  // s = A p + b, row-major [A | b]
+
+  int count() const { return axes[0].n_ctrl() * axes[1].n_ctrl() * axes[2].n_ctrl(); }
+  // Sum of the per-axis degrees: the degree of the exact deformed triangle (paper, section 3).
+  int degree_sum() const { return axes[0].degree() + axes[1].degree() + axes[2].degree(); }
+
+  void to_param(const double p[3], double s[3]) const;
+  // Pieces containing s, one per axis.
+  void find_pieces(const double s[3], int piece[3]) const;
+  // Position and Jacobian (row-major dF_r/dp_c) in double precision.
+  void evaluate(const double p[3], const double* D, double weight, double F[3], double J[9]) const;
+};
+
+}  // namespace sffd

@@ -1,0 +1,53 @@
+// The tensor-product contraction shared by every lattice evaluation (double API, CPU and CUDA
+// evaluators): given the active terms of the three axes at a point, sum their products with
+// the control values D and the derivatives along s.
+#pragma once
+
+#include "smoothffd/core/hd.hpp"
+
+namespace sffd {
+
+// D is (nu, nv, nw, 3) C-order. value[3] = sum w_a w_b w_c D_abc; grad[3*r + axis] = dvalue_r/ds_axis.
+template <class T, class TD>
+SFFD_HD void tensor_eval(const int* iu, const T* wu, const T* du, int cu,
+                         const int* iv, const T* wv, const T* dv, int cv,
+                         const int* iw, const T* ww, const T* dw, int cw,
+                         const TD* D, int nv, int nw, T value[3], T grad[9]) {
+  for (int r = 0; r < 3; ++r) {
+    value[r] = 0;
+    grad[3 * r] = grad[3 * r + 1] = grad[3 * r + 2] = 0;
+  }
+  for (int a = 0; a < cu; ++a) {
+    for (int b = 0; b < cv; ++b) {
+      T wab = wu[a] * wv[b], gua = du[a] * wv[b], gvb = wu[a] * dv[b];
+      const TD* row = D + 3 * ((long long)(iu[a] * nv + iv[b]) * nw);
+      for (int c = 0; c < cw; ++c) {
+        const TD* d = row + 3 * iw[c];
+        T w = wab * ww[c], gu = gua * ww[c], gv = gvb * ww[c], gw = wab * dw[c];
+        for (int r = 0; r < 3; ++r) {
+          T x = (T)d[r];
+          value[r] += w * x;
+          grad[3 * r] += gu * x;
+          grad[3 * r + 1] += gv * x;
+          grad[3 * r + 2] += gw * x;
+        }
+      }
+    }
+  }
+}
+
+// F = p + weight * value; J = I + weight * grad * A, A = ds/dp (row-major 3x3 part of the
+// affine map object -> parameter space).
+template <class T>
+SFFD_HD void compose_deformation(const T p[3], T weight, const T value[3], const T grad[9],
+                                 const T A[9], T F[3], T J[9]) {
+  for (int r = 0; r < 3; ++r) {
+    F[r] = p[r] + weight * value[r];
+    for (int c = 0; c < 3; ++c) {
+      T g = grad[3 * r] * A[c] + grad[3 * r + 1] * A[3 + c] + grad[3 * r + 2] * A[6 + c];
+      J[3 * r + c] = (r == c ? T(1) : T(0)) + weight * g;
+    }
+  }
+}
+
+}  // namespace sffd

@@ -1,0 +1,54 @@
+#include "smoothffd/plan/edges.hpp"
+
+#include <algorithm>
+#include <cstdint>
+
+namespace sffd {
+
+EdgeTable build_edges(const std::vector<int>& tv) {
+  size_t T = tv.size() / 3;
+  std::vector<std::pair<uint64_t, int>> half(3 * T);
+  for (size_t t = 0; t < T; ++t)
+    for (int k = 0; k < 3; ++k) {
+      uint32_t a = tv[3 * t + k], b = tv[3 * t + (k + 1) % 3];
+      if (a > b) std::swap(a, b);
+      half[3 * t + k] = {(uint64_t(a) << 32) | b, int(3 * t + k)};
+    }
+  std::sort(half.begin(), half.end());
+  EdgeTable e;
+  e.tri_edge.assign(3 * T, -1);
+  for (size_t i = 0; i < half.size(); ++i) {
+    if (i == 0 || half[i].first != half[i - 1].first) {
+      e.vertex.push_back(int(half[i].first >> 32));
+      e.vertex.push_back(int(half[i].first & 0xffffffffu));
+      e.side.push_back(-1);
+      e.side.push_back(-1);
+      e.face_count.push_back(0);
+    }
+    int id = e.count() - 1;
+    int t = half[i].second / 3;
+    if (e.face_count[id] < 2) e.side[2 * id + e.face_count[id]] = t;
+    e.face_count[id]++;
+    e.tri_edge[half[i].second] = id;
+  }
+  return e;
+}
+
+std::vector<uint8_t> classify_sharp_ends(const EdgeTable& e, const std::vector<int>& tv,
+                                         const std::vector<double>& cn, double cos_tol) {
+  std::vector<uint8_t> flags(e.count(), 0);
+  for (int id = 0; id < e.count(); ++id) {
+    if (e.face_count[id] != 2) continue;
+    int t0 = e.side[2 * id], t1 = e.side[2 * id + 1];
+    for (int end = 0; end < 2; ++end) {
+      int v = e.vertex[2 * id + end];
+      const double* n0 = &cn[9 * (size_t)t0 + 3 * slot_of(tv, t0, v)];
+      const double* n1 = &cn[9 * (size_t)t1 + 3 * slot_of(tv, t1, v)];
+      double d = n0[0] * n1[0] + n0[1] * n1[1] + n0[2] * n1[2];
+      if (!(d >= cos_tol)) flags[id] |= uint8_t(1u << end);
+    }
+  }
+  return flags;
+}
+
+}  // namespace sffd

@@ -1,0 +1,411 @@
+#include "smoothffd/plan/plan.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+#include "smoothffd/mesh/triangulate.hpp"
+#include "smoothffd/plan/clip.hpp"
+#include "smoothffd/plan/edges.hpp"
+#include "smoothffd/plan/fit_matrix.hpp"
+#include "smoothffd/plan/rest_surface.hpp"
+#include "smoothffd/plan/tessellation.hpp"
+
+namespace sffd {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+struct StageTimer {
+  Plan& plan;
+  Clock::time_point t0 = Clock::now();
+  void lap(const char* name) {
+    auto t1 = Clock::now();
+    plan.build_ms.emplace_back(name, std::chrono::duration<double, std::milli>(t1 - t0).count());
+    t0 = t1;
+  }
+};
+
+void normalize_or(double* v, const double* fallback) {
+  double l = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+  if (l > 1e-30 && std::isfinite(l)) {
+    for (int i = 0; i < 3; ++i) v[i] /= l;
+  } else {
+    for (int i = 0; i < 3; ++i) v[i] = fallback[i];
+  }
+}
+
+void triangle_normal(const std::vector<double>& X, const int* t, double* n) {
+  const double *a = &X[3 * (size_t)t[0]], *b = &X[3 * (size_t)t[1]], *c = &X[3 * (size_t)t[2]];
+  double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+  double w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+  n[0] = u[1] * w[2] - u[2] * w[1];
+  n[1] = u[2] * w[0] - u[0] * w[2];
+  n[2] = u[0] * w[1] - u[1] * w[0];
+}
+
+void validate(const InputMesh& m) {
+  size_t V = m.positions.size() / 3, C = m.corner_vertex.size();
+  if (m.positions.size() % 3) throw std::invalid_argument("positions: expected #V x 3 values");
+  if (m.face_offset.empty() || m.face_offset.front() != 0 || (size_t)m.face_offset.back() != C)
+    throw std::invalid_argument("face_offsets: must start at 0 and end at the corner count");
+  for (size_t f = 0; f + 1 < m.face_offset.size(); ++f)
+    if (m.face_offset[f + 1] - m.face_offset[f] < 3)
+      throw std::invalid_argument("faces: face " + std::to_string(f) + " has fewer than 3 corners");
+  for (int v : m.corner_vertex)
+    if (v < 0 || (size_t)v >= V) throw std::invalid_argument("faces: vertex index out of range");
+  if (!m.corner_normal.empty() && m.corner_normal.size() != 3 * C)
+    throw std::invalid_argument("corner_normals: expected one normal per face corner");
+  if (!m.corner_uv.empty() && m.corner_uv.size() != 2 * C)
+    throw std::invalid_argument("uvs: expected one UV per face corner");
+  if (!m.vertex_weight.empty() && m.vertex_weight.size() != V)
+    throw std::invalid_argument("vertex_weights: expected one weight per vertex");
+  for (double x : m.positions)
+    if (!std::isfinite(x)) throw std::invalid_argument("positions: contain NaN or Inf");
+}
+
+// Unit normal at every triangle corner (#T x 3 x 3): the input split normals, or smooth
+// area-weighted vertex normals when none are given.
+std::vector<double> triangle_corner_normals(const InputMesh& m, const Triangulation& tr,
+                                            const std::vector<int>& tv) {
+  size_t T = tr.face.size(), V = m.positions.size() / 3;
+  std::vector<double> cn(9 * T), fn(3 * T);
+  const double up[3] = {0, 0, 1};
+  for (size_t t = 0; t < T; ++t) triangle_normal(m.positions, &tv[3 * t], &fn[3 * t]);
+  std::vector<double> vn;
+  if (m.corner_normal.empty()) {
+    vn.assign(3 * V, 0.0);
+    for (size_t t = 0; t < T; ++t)
+      for (int k = 0; k < 3; ++k)
+        for (int i = 0; i < 3; ++i) vn[3 * (size_t)tv[3 * t + k] + i] += fn[3 * t + i];
+  }
+  for (size_t t = 0; t < T; ++t) {
+    double face[3] = {fn[3 * t], fn[3 * t + 1], fn[3 * t + 2]};
+    normalize_or(face, up);
+    for (int k = 0; k < 3; ++k) {
+      double* n = &cn[9 * t + 3 * k];
+      if (m.corner_normal.empty()) {
+        for (int i = 0; i < 3; ++i) n[i] = vn[3 * (size_t)tv[3 * t + k] + i];
+      } else {
+        for (int i = 0; i < 3; ++i) n[i] = m.corner_normal[3 * (size_t)tr.corners[3 * t + k] + i];
+      }
+      normalize_or(n, face);  // a zero input normal falls back to the face's own
+    }
+  }
+  return cn;
+}
+
+uint32_t pack_pieces(const int p[3]) { return uint32_t(p[0]) | uint32_t(p[1]) << 10 | uint32_t(p[2]) << 20; }
+
+}  // namespace
+
+size_t Plan::bytes() const {
+  size_t b = 0;
+  b += pieces.size() * sizeof(AxisPieceF);
+  b += 4 * (sample_position.size() + sample_piece.size() + sample_weight.size() +
+            fit_matrix.size() + column_bary.size() + patch_samples.size() + patch_vertex.size() +
+            patch_edge.size() + patch_render_normal.size() + patch_adjust_normal.size() +
+            patch_face.size() + edge_vertex.size() + edge_constraint.size() + edge_patch.size() +
+            grid_basis.size() + local_triangles.size() + patch_grid_vertex.size() +
+            output_owner.size() + rest_positions.size() + triangles.size() + face_index.size() +
+            uvs.size() + sharp_edges.size());
+  b += patch_edge_reversed.size() + edge_slot.size() + edge_flags.size();
+  return b;
+}
+
+Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt) {
+  validate(mesh);
+  if (opt.level < 1) throw std::invalid_argument("level: must be at least 1");
+  for (int a = 0; a < 3; ++a)
+    if (lattice.axes[a].pieces().size() > 1023)
+      throw std::invalid_argument("lattice: too many knot spans on one axis (at most 1023)");
+  Plan plan;
+  StageTimer timer{plan};
+  const int V = (int)(mesh.positions.size() / 3);
+  const std::vector<double>& X = mesh.positions;
+  const double cos_tol = std::cos(opt.sharp_angle_degrees * M_PI / 180.0);
+
+  // 1. Triangulation, corner normals and the sharpness of the input's edge ends.
+  Triangulation tr = triangulate_polygons(X, mesh.corner_vertex, mesh.face_offset);
+  std::vector<int> tv(tr.corners.size());
+  for (size_t i = 0; i < tv.size(); ++i) tv[i] = mesh.corner_vertex[tr.corners[i]];
+  std::vector<double> tcn = triangle_corner_normals(mesh, tr, tv);
+  EdgeTable in_edges = build_edges(tv);
+  std::vector<uint8_t> in_sharp = classify_sharp_ends(in_edges, tv, tcn, cos_tol);
+  timer.lap("triangulate");
+
+  // 2. Knot-box clipping; clip vertices move onto the crease-aware PN rest surface (4.3.1).
+  RestSurface rest = build_rest_surface(X, tv, in_edges, in_sharp, tcn);
+  ClipResult clip = clip_to_knot_boxes(X, tv, lattice);
+  const int SV = clip.sub_vertices(), P = clip.patches();
+  std::vector<double> moved(clip.flat);
+  std::vector<double> sub_weight(SV, 1.0);
+  for (int v = 0; v < SV; ++v) {
+    if (v < V) {
+      if (!mesh.vertex_weight.empty()) sub_weight[v] = mesh.vertex_weight[v];
+      continue;
+    }
+    int t = clip.origin_tri[v];
+    const double* b = &clip.origin_bary[3 * (size_t)v];
+    rest_surface_point(rest, X, tv, in_edges, t, b, &moved[3 * (size_t)v]);
+    if (!mesh.vertex_weight.empty()) {
+      sub_weight[v] = 0;
+      for (int k = 0; k < 3; ++k) sub_weight[v] += b[k] * mesh.vertex_weight[tv[3 * t + k]];
+    }
+  }
+  timer.lap("clip");
+
+  // 3. Patches: corner normals for shading (barycentric, 4.3.2) and for the adjustment
+  // (the PN quadratic normal field at clip vertices, the input normal at input vertices).
+  plan.patch_vertex = clip.patch_vertex;
+  plan.patch_face.resize(P);
+  plan.patch_render_normal.resize(9 * (size_t)P);
+  plan.patch_adjust_normal.resize(9 * (size_t)P);
+  std::vector<double> render_d(9 * (size_t)P);
+  std::vector<float> patch_uv(mesh.corner_uv.empty() ? 0 : 6 * (size_t)P);
+  for (int p = 0; p < P; ++p) {
+    int t = clip.patch_tri[p];
+    plan.patch_face[p] = tr.face[t];
+    double Pt[9], Nt[9];
+    for (int k = 0; k < 3; ++k)
+      for (int i = 0; i < 3; ++i) {
+        Pt[3 * k + i] = X[3 * (size_t)tv[3 * t + k] + i];
+        Nt[3 * k + i] = tcn[9 * (size_t)t + 3 * k + i];
+      }
+    for (int c = 0; c < 3; ++c) {
+      const double* b = &clip.patch_bary[9 * (size_t)p + 3 * c];
+      double rn[3], an[3];
+      for (int i = 0; i < 3; ++i) rn[i] = b[0] * Nt[i] + b[1] * Nt[3 + i] + b[2] * Nt[6 + i];
+      normalize_or(rn, Nt);
+      if (plan.patch_vertex[3 * p + c] < V) {
+        for (int i = 0; i < 3; ++i) an[i] = rn[i];
+      } else {
+        pn_quadratic_normal(Pt, Nt, b, an);
+      }
+      for (int i = 0; i < 3; ++i) {
+        render_d[9 * (size_t)p + 3 * c + i] = rn[i];
+        plan.patch_render_normal[9 * (size_t)p + 3 * c + i] = (float)rn[i];
+        plan.patch_adjust_normal[9 * (size_t)p + 3 * c + i] = (float)an[i];
+      }
+      if (!patch_uv.empty())
+        for (int i = 0; i < 2; ++i) {
+          double u = 0;
+          for (int k = 0; k < 3; ++k) u += b[k] * mesh.corner_uv[2 * (size_t)tr.corners[3 * t + k] + i];
+          patch_uv[6 * (size_t)p + 2 * c + i] = (float)u;
+        }
+    }
+  }
+
+  // 4. Sub-mesh adjacency and the sharpness of its edge ends.
+  EdgeTable sub = build_edges(plan.patch_vertex);
+  const int E = sub.count();
+  std::vector<uint8_t> sharp = classify_sharp_ends(sub, plan.patch_vertex, render_d, cos_tol);
+  plan.edge_vertex = sub.vertex;
+  plan.edge_patch = sub.side;
+  plan.edge_flags.resize(E);
+  plan.edge_slot.assign(4 * (size_t)E, 0);
+  for (int e = 0; e < E; ++e) {
+    uint8_t f = sharp[e];
+    if (sub.face_count[e] == 1) f |= kBoundary;
+    if (sub.face_count[e] > 2) f |= kNonManifold;
+    plan.edge_flags[e] = f;
+    for (int s = 0; s < 2; ++s) {
+      int p = sub.side[2 * e + s];
+      if (p < 0) continue;
+      plan.edge_slot[4 * (size_t)e + 2 * s] = (uint8_t)slot_of(plan.patch_vertex, p, sub.vertex[2 * e]);
+      plan.edge_slot[4 * (size_t)e + 2 * s + 1] = (uint8_t)slot_of(plan.patch_vertex, p, sub.vertex[2 * e + 1]);
+    }
+  }
+  plan.patch_edge = sub.tri_edge;
+  plan.patch_edge_reversed.resize(3 * (size_t)P);
+  for (int p = 0; p < P; ++p)
+    for (int k = 0; k < 3; ++k)
+      plan.patch_edge_reversed[3 * p + k] = sub.vertex[2 * sub.tri_edge[3 * p + k]] != plan.patch_vertex[3 * p + k];
+  timer.lap("adjacency");
+
+  // 5. Samples (sec. 5.1): one per sub-vertex, per point inside an edge, per interior point.
+  const int n = std::max(3, lattice.degree_sum());
+  FitTables fit = build_fit_tables(n);
+  const int K = fit.columns, N3 = 3 * n;
+  std::vector<int> edge_num;  // numerators over 3n of the sample points inside an edge
+  for (int q = 1; q < N3; ++q)
+    if (q % 3 == 0 || q == n || q == 2 * n) edge_num.push_back(q);
+  const int ES = (int)edge_num.size(), IS = (n - 1) * (n - 2) / 2;
+  auto edge_index = [&](int q) { return int(std::lower_bound(edge_num.begin(), edge_num.end(), q) - edge_num.begin()); };
+  const long long S = (long long)SV + (long long)E * ES + (long long)P * IS;
+  if (S > 2000000000LL) throw std::invalid_argument("mesh: too large for one plan");
+  plan.sample_position.resize(3 * S);
+  plan.sample_weight.resize(S);
+  auto put_sample = [&](long long s, const double* pos, double w) {
+    for (int i = 0; i < 3; ++i) plan.sample_position[3 * s + i] = (float)pos[i];
+    plan.sample_weight[s] = (float)w;
+  };
+  for (int v = 0; v < SV; ++v) put_sample(v, &moved[3 * (size_t)v], sub_weight[v]);
+  for (int e = 0; e < E; ++e) {
+    int a = sub.vertex[2 * e], b = sub.vertex[2 * e + 1];
+    for (int j = 0; j < ES; ++j) {
+      double t = edge_num[j] / double(N3), pos[3];
+      for (int i = 0; i < 3; ++i) pos[i] = (1 - t) * moved[3 * (size_t)a + i] + t * moved[3 * (size_t)b + i];
+      put_sample(SV + (long long)e * ES + j, pos, (1 - t) * sub_weight[a] + t * sub_weight[b]);
+    }
+  }
+  std::vector<int> column_interior(K, -1);
+  for (int k = 0, ord = 0; k < K; ++k) {
+    const int* q = &fit.numerator[3 * k];
+    if (q[0] > 0 && q[1] > 0 && q[2] > 0) column_interior[k] = ord++;
+  }
+  plan.patch_samples.resize((size_t)P * K);
+  for (int p = 0; p < P; ++p) {
+    const int* cv = &plan.patch_vertex[3 * p];
+    for (int k = 0; k < K; ++k) {
+      const int* q = &fit.numerator[3 * k];
+      long long s;
+      int zeros = (q[0] == 0) + (q[1] == 0) + (q[2] == 0);
+      if (zeros == 2) {
+        s = cv[q[0] ? 0 : q[1] ? 1 : 2];
+      } else if (zeros == 1) {
+        int ek = q[2] == 0 ? 0 : q[0] == 0 ? 1 : 2;  // edge corner ek -> ek + 1
+        int along = q[(ek + 1) % 3];                  // numerator of the far corner
+        if (plan.patch_edge_reversed[3 * p + ek]) along = N3 - along;
+        s = SV + (long long)plan.patch_edge[3 * p + ek] * ES + edge_index(along);
+      } else {
+        s = SV + (long long)E * ES + (long long)p * IS + column_interior[k];
+        double b[3] = {q[0] / double(N3), q[1] / double(N3), q[2] / double(N3)}, pos[3], w = 0;
+        for (int i = 0; i < 3; ++i) {
+          pos[i] = 0;
+          for (int c = 0; c < 3; ++c) pos[i] += b[c] * moved[3 * (size_t)cv[c] + i];
+        }
+        for (int c = 0; c < 3; ++c) w += b[c] * sub_weight[cv[c]];
+        put_sample(s, pos, w);
+      }
+      plan.patch_samples[(size_t)p * K + k] = (int)s;
+    }
+  }
+  plan.edge_constraint.resize(2 * (size_t)E);
+  for (int e = 0; e < E; ++e) {
+    plan.edge_constraint[2 * e] = SV + e * ES + edge_index(n);
+    plan.edge_constraint[2 * e + 1] = SV + e * ES + edge_index(2 * n);
+  }
+  plan.sample_piece.resize(S);
+  for (long long s = 0; s < S; ++s) {
+    double pos[3], prm[3];
+    int pc[3];
+    for (int i = 0; i < 3; ++i) pos[i] = plan.sample_position[3 * s + i];
+    lattice.to_param(pos, prm);
+    lattice.find_pieces(prm, pc);
+    plan.sample_piece[s] = pack_pieces(pc);
+  }
+  plan.fit_matrix.assign(fit.M_r.begin(), fit.M_r.end());
+  plan.column_bary.resize(3 * (size_t)K);
+  for (int i = 0; i < 3 * K; ++i) plan.column_bary[i] = (float)(fit.numerator[i] / double(N3));
+  timer.lap("samples");
+
+  // 6. Tessellation tables and the welded output topology.
+  const int L = opt.level;
+  TessellationTables tess = build_tessellation(L);
+  const int G = tess.grid, IG = (L - 1) * (L - 2) / 2;
+  const long long N = (long long)SV + (long long)E * (L - 1) + (long long)P * IG;
+  const long long T = (long long)P * L * L;
+  if (N > 2000000000LL || 3 * T > 2000000000LL)
+    throw std::invalid_argument("level: output too large (" + std::to_string(T) + " triangles)");
+  plan.grid_basis = tess.basis;
+  plan.local_triangles = tess.triangles;
+  plan.patch_grid_vertex.resize((size_t)P * G);
+  plan.output_owner.assign(2 * (size_t)(N - SV), -1);
+  plan.rest_positions.resize(3 * (size_t)N);
+  for (int v = 0; v < SV; ++v)
+    for (int i = 0; i < 3; ++i) plan.rest_positions[3 * (size_t)v + i] = (float)clip.flat[3 * (size_t)v + i];
+  for (int p = 0; p < P; ++p) {
+    const int* cv = &plan.patch_vertex[3 * p];
+    for (int g = 0; g < G; ++g) {
+      const GridPoint& gp = tess.points[g];
+      long long o;
+      if (gp.kind == 0) {
+        o = cv[gp.which];
+      } else if (gp.kind == 1) {
+        int m = plan.patch_edge_reversed[3 * p + gp.which] ? L - gp.step : gp.step;
+        o = SV + (long long)plan.patch_edge[3 * p + gp.which] * (L - 1) + (m - 1);
+      } else {
+        o = SV + (long long)E * (L - 1) + (long long)p * IG + gp.which;
+      }
+      plan.patch_grid_vertex[(size_t)p * G + g] = (int)o;
+      if (o >= SV && plan.output_owner[2 * (o - SV)] < 0) {
+        plan.output_owner[2 * (o - SV)] = p;
+        plan.output_owner[2 * (o - SV) + 1] = g;
+        const double* b = &tess.bary[3 * g];
+        for (int i = 0; i < 3; ++i) {
+          double x = 0;
+          for (int c = 0; c < 3; ++c) x += b[c] * clip.flat[3 * (size_t)cv[c] + i];
+          plan.rest_positions[3 * o + i] = (float)x;
+        }
+      }
+    }
+  }
+  plan.triangles.resize(3 * (size_t)T);
+  plan.face_index.resize(T);
+  if (!patch_uv.empty()) plan.uvs.resize(6 * (size_t)T);
+  const int LL = L * L;
+  for (int p = 0; p < P; ++p)
+    for (int t = 0; t < LL; ++t) {
+      size_t ot = (size_t)p * LL + t;
+      plan.face_index[ot] = plan.patch_face[p];
+      for (int c = 0; c < 3; ++c) {
+        int g = tess.triangles[3 * t + c];
+        plan.triangles[3 * ot + c] = plan.patch_grid_vertex[(size_t)p * G + g];
+        if (!patch_uv.empty())
+          for (int i = 0; i < 2; ++i) {
+            const double* b = &tess.bary[3 * g];
+            double u = 0;
+            for (int k = 0; k < 3; ++k) u += b[k] * patch_uv[6 * (size_t)p + 2 * k + i];
+            plan.uvs[6 * ot + 2 * c + i] = (float)u;
+          }
+      }
+    }
+  for (int e = 0; e < E; ++e) {
+    if (!(plan.edge_flags[e] & (kSharpAtA | kSharpAtB))) continue;
+    int prev = sub.vertex[2 * e];
+    for (int m = 1; m <= L; ++m) {
+      int cur = m == L ? sub.vertex[2 * e + 1] : SV + e * (L - 1) + (m - 1);
+      plan.sharp_edges.push_back(prev);
+      plan.sharp_edges.push_back(cur);
+      prev = cur;
+    }
+  }
+  timer.lap("tessellation");
+
+  // 7. Lattice tables for the evaluators.
+  for (int a = 0; a < 3; ++a) {
+    plan.axis_offset[a] = (int)plan.pieces.size();
+    plan.dims[a] = lattice.axes[a].n_ctrl();
+    for (const AxisPiece& pc : lattice.axes[a].pieces()) {
+      AxisPieceF f{};
+      f.origin = (float)pc.origin;
+      f.inv_scale = (float)(1.0 / pc.scale);
+      f.degree = pc.degree;
+      f.count = pc.count;
+      for (int k = 0; k < kMaxTerms; ++k) {
+        f.index[k] = pc.index[k];
+        for (int q = 0; q < kMaxTerms; ++q) f.coef[k][q] = (float)pc.coef[k][q];
+      }
+      plan.pieces.push_back(f);
+    }
+    for (int c = 0; c < 4; ++c) plan.param_map[4 * a + c] = (float)lattice.object_to_param[a][c];
+  }
+
+  plan.input_vertices = V;
+  plan.sub_vertices = SV;
+  plan.patches = P;
+  plan.edges = E;
+  plan.samples = (int)S;
+  plan.fit_degree = n;
+  plan.columns = K;
+  plan.edge_samples = ES;
+  plan.level = L;
+  plan.grid = G;
+  plan.output_vertices = (int)N;
+  plan.output_triangles = (int)T;
+  return plan;
+}
+
+}  // namespace sffd

@@ -1,0 +1,119 @@
+// The plan: everything that depends only on the mesh topology, its rest geometry and the
+// lattice *structure*, built once (OpenSubdiv's "Far" stage). Evaluators then run every frame
+// from new control values only. All arrays are flat and row-major so that the CUDA evaluator
+// uploads them as they are.
+//
+// Pipeline of the plan build (one file each under plan/ and mesh/):
+//   triangulate polygons -> classify sharp edge ends (input split normals) -> crease-aware PN
+//   rest surface -> knot-box clipping (clip vertices moved onto the rest surface, sec. 4.3.1)
+//   -> sub-mesh adjacency and sharpness -> samples (sec. 5.1) -> fitting matrix M_r (Eq. 11)
+//   -> tessellation tables (Eq. 14) and the welded output topology.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "smoothffd/lattice/lattice_spec.hpp"
+
+namespace sffd {
+
+struct InputMesh {
+  std::vector<double> positions;     // #V x 3
+  std::vector<int> corner_vertex;    // #C
+  std::vector<int> face_offset;      // #F + 1
+  std::vector<float> corner_normal;  // #C x 3, or empty: smooth area-weighted vertex normals
+  std::vector<float> corner_uv;      // #C x 2, or empty
+  std::vector<float> vertex_weight;  // #V, or empty: all 1
+};
+
+struct PlanOptions {
+  int level = 10;                      // L: L^2 output triangles a patch
+  double sharp_angle_degrees = 1.0;    // corner normals further apart than this are split
+};
+
+// Float copy of one axis piece for the evaluators (see lattice/axis_basis.hpp).
+struct AxisPieceF {
+  float origin, inv_scale;
+  int degree, count;
+  int index[kMaxTerms];
+  float coef[kMaxTerms][kMaxTerms];
+};
+
+// Flags of a sub-mesh edge.
+enum EdgeFlags : uint8_t {
+  kSharpAtA = 1,      // the two faces' normals differ at end a
+  kSharpAtB = 2,
+  kBoundary = 4,      // one face
+  kNonManifold = 8,   // three or more faces: left as fitted
+};
+
+struct Plan {
+  // --- sizes
+  int input_vertices = 0;   // V: output vertices [0, V) are the deformed input vertices
+  int sub_vertices = 0;     // V + clip vertices
+  int patches = 0;          // P: sub-triangles, one cubic geometry + one cubic normal patch each
+  int edges = 0;            // E: sub-mesh edges
+  int samples = 0;          // S: unique sample points (vertices, then edges, then interiors)
+  int fit_degree = 0;       // n: fitting grid degree (sum of lattice degrees, at least 3)
+  int columns = 0;          // K = (n+1)(n+2)/2 + 9: samples a patch (fitting + constraint)
+  int edge_samples = 0;     // samples inside each edge
+  int level = 0;            // L
+  int grid = 0;             // G = (L+1)(L+2)/2 tessellation points a patch
+  int output_vertices = 0;  // N
+  int output_triangles = 0; // T = P L^2
+
+  // --- lattice tables
+  std::vector<AxisPieceF> pieces;  // the three axes' pieces, concatenated
+  int axis_offset[3] = {0, 0, 0};
+  int dims[3] = {1, 1, 1};          // nu, nv, nw (control values D are nu*nv*nw x 3)
+  float param_map[12] = {};         // s = A p + b, row-major [A | b]
+
+  // --- samples (sec. 5.1)
+  std::vector<float> sample_position;  // S x 3: rest point (clip vertices on the rest surface)
+  std::vector<uint32_t> sample_piece;  // S: piece per axis, 10 bits each (relative to axis)
+  std::vector<float> sample_weight;    // S: per-vertex deformation factor, interpolated
+
+  // --- constrained fitting (Eqs. 11-13)
+  std::vector<float> fit_matrix;     // 10 x K (M_r)
+  std::vector<float> column_bary;    // K x 3: barycentric point of each column
+  std::vector<int> patch_samples;    // P x K: sample of each column
+
+  // --- patches
+  std::vector<int> patch_vertex;            // P x 3 sub-vertices (= their vertex samples)
+  std::vector<int> patch_edge;              // P x 3: edge k runs corner k -> corner k+1
+  std::vector<uint8_t> patch_edge_reversed; // P x 3: 1 when corner k is the edge's end b
+  std::vector<float> patch_render_normal;   // P x 3 x 3: rest normals at the corners (shading)
+  std::vector<float> patch_adjust_normal;   // P x 3 x 3: rest normals for the adjustment (4.3.2)
+  std::vector<int> patch_face;              // P: input face
+
+  // --- edges (geometry adjustment, sec. 4.2)
+  std::vector<int> edge_vertex;           // E x 2: ends a, b
+  std::vector<int> edge_constraint;       // E x 2: samples at 1/3 and 2/3 from a
+  std::vector<int> edge_patch;            // E x 2: patch on each side (-1: none)
+  std::vector<uint8_t> edge_slot;         // E x 4: corner slots of a and b in side 0, side 1
+  std::vector<uint8_t> edge_flags;        // E: EdgeFlags
+
+  // --- tessellation (sec. 5.5, Eq. 14)
+  std::vector<float> grid_basis;       // G x 10: cubic Bernstein values at the grid points
+  std::vector<int> local_triangles;    // L^2 x 3 grid indices
+  std::vector<int> patch_grid_vertex;  // P x G: output vertex of each grid point
+  std::vector<int> output_owner;       // (N - sub_vertices) x 2: (patch, grid point)
+
+  // --- static outputs (identical every frame)
+  std::vector<float> rest_positions;   // N x 3
+  std::vector<int> triangles;          // T x 3
+  std::vector<int> face_index;         // T
+  std::vector<float> uvs;              // T x 3 x 2, or empty
+  std::vector<int> sharp_edges;        // K x 2 output vertex pairs where normals split
+
+  // Timings of the plan's build stages (ms), for the stats.
+  std::vector<std::pair<std::string, double>> build_ms;
+
+  size_t bytes() const;  // host memory held
+};
+
+// Builds the plan. Throws std::invalid_argument on invalid input.
+Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& options);
+
+}  // namespace sffd

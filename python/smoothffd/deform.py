@@ -1,0 +1,153 @@
+"""`deform` and the reusable `Deformer`: plan once, evaluate per frame."""
+
+import logging
+import os
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import _core
+from ._validate import positive_int
+from .lattice import BlenderLattice, BSplineLattice, _Lattice
+from .mesh import Mesh
+
+log = logging.getLogger("smoothffd")
+
+MAX_LEVEL = 64
+_DEVICES = ("auto", "cpu", "cuda")
+
+
+@dataclass
+class Result:
+    """Output of one deformation (see docs/api.md)."""
+
+    positions: np.ndarray        # (N, 3) float32; [:V] are the deformed input vertices
+    triangles: np.ndarray        # (T, 3) int32
+    corner_normals: np.ndarray   # (T, 3, 3) float32, unit
+    uvs: object                  # (T, 3, 2) float32 or None
+    face_index: np.ndarray       # (T,) int32: input face of each output triangle
+    rest_positions: np.ndarray   # (N, 3) float32: preimage on the flat input faces
+    sharp_edges: np.ndarray      # (K, 2) int32: output edges where the normals split
+    stats: dict = field(default_factory=dict)
+
+
+def cuda_status():
+    """(usable, message): whether the CUDA evaluator can run here, and if not, why."""
+    return tuple(_core.cuda_status())
+
+
+def _available_memory():
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def _estimate_bytes(mesh, level):
+    # Lower bound (clipping adds patches): per output triangle 3 indices, 9 normal floats,
+    # 6 uv floats and a face index, plus about half a vertex of positions and rest positions.
+    tris = int(np.sum(np.diff(mesh.face_offsets) - 2))
+    t = tris * level * level
+    per_tri = 4 * (3 + 9 + (6 if mesh.uvs is not None else 0) + 1) + 0.5 * 4 * 6
+    return int(t * per_tri * 2)  # plan copy + result
+
+
+class Deformer:
+    """Plans a mesh for a lattice structure once; `deform` then only pushes control values.
+
+    device: "auto" (CUDA when a usable GPU exists, else the CPU), "cpu" or "cuda" (raises
+    RuntimeError when no usable GPU). threads: CPU threads (0: all cores).
+    """
+
+    def __init__(self, mesh, lattice, level=10, device="auto", threads=0):
+        if not isinstance(mesh, Mesh):
+            raise TypeError(f"mesh: expected smoothffd.Mesh, got {type(mesh).__name__}")
+        if not isinstance(lattice, _Lattice):
+            raise TypeError("lattice: expected smoothffd.BSplineLattice or smoothffd.BlenderLattice, "
+                            f"got {type(lattice).__name__}")
+        self.level = positive_int(level, "level", 1, MAX_LEVEL)
+        if device not in _DEVICES:
+            raise ValueError(f"device: expected one of {_DEVICES}, got {device!r}")
+        self.threads = positive_int(threads, "threads", 0, 4096)
+        self.mesh = mesh
+        self.requested_device = device
+        need, avail = _estimate_bytes(mesh, self.level), _available_memory()
+        if avail is not None and need > avail:
+            raise MemoryError(f"level {self.level}: the output needs at least {need / 2**30:.1f} GiB, "
+                              f"only {avail / 2**30:.1f} GiB of memory is available")
+        self._plan_for(lattice)
+
+    def _plan_for(self, lattice):
+        t0 = time.perf_counter()
+        m = self.mesh
+        self.plan = _core.build_plan(m.positions, m.corner_vertices, m.face_offsets,
+                                     m.corner_normals, m.uvs, m.vertex_weights,
+                                     lattice._spec, self.level)
+        self.plan_ms = (time.perf_counter() - t0) * 1e3
+        self.lattice = lattice
+        self._key = lattice.structure_key()
+        self._static = None
+        self.device, self.device_message = self._choose_device()
+        if self.device == "cuda":
+            self._evaluator = _core.CudaEvaluator(self.plan)
+        else:
+            self._evaluator = _core.CpuEvaluator(self.plan, self.threads)
+
+    def _choose_device(self):
+        if self.requested_device == "cpu":
+            return "cpu", "CPU requested"
+        usable, why = cuda_status()
+        if usable:
+            return "cuda", why
+        if self.requested_device == "cuda":
+            raise RuntimeError(f"device='cuda': no usable CUDA device ({why})")
+        log.info("smoothffd: using the CPU (%s)", why)
+        return "cpu", f"CPU fallback: {why}"
+
+    def _static_arrays(self):
+        if self._static is None:
+            p = self.plan
+            self._static = dict(triangles=p.triangles(), face_index=p.face_index(), uvs=p.uvs(),
+                                rest_positions=p.rest_positions(), sharp_edges=p.sharp_edges())
+            for a in self._static.values():
+                if a is not None:
+                    a.setflags(write=False)
+        return self._static
+
+    def deform(self, lattice_or_points=None):
+        """Deform with new control values.
+
+        Pass a lattice (replanned automatically if its structure differs from the planned
+        one) or just its new points: (nu, nv, nw, 3) `points` for a BlenderLattice, control
+        points for a BSplineLattice. None re-evaluates the current lattice.
+        """
+        lat = lattice_or_points
+        if lat is None:
+            lat = self.lattice
+        elif not isinstance(lat, _Lattice):
+            lat = self.lattice.with_points(lat)
+        if lat.structure_key() != self._key:
+            self._plan_for(lat)
+        self.lattice = lat
+        values = np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32)
+        t0 = time.perf_counter()
+        positions, normals, stages = self._evaluator.evaluate(values)
+        total = (time.perf_counter() - t0) * 1e3
+        s = self._static_arrays()
+        p = self.plan
+        stats = dict(device=self.device, device_message=self.device_message,
+                     plan_ms=self.plan_ms, deform_ms=total, stage_ms=dict(stages),
+                     input_vertices=p.input_vertices, patches=p.patches,
+                     sub_vertices=p.sub_vertices, output_vertices=p.output_vertices,
+                     output_triangles=p.output_triangles, fit_degree=p.fit_degree,
+                     level=self.level)
+        return Result(positions=positions, triangles=s["triangles"], corner_normals=normals,
+                      uvs=s["uvs"], face_index=s["face_index"],
+                      rest_positions=s["rest_positions"], sharp_edges=s["sharp_edges"],
+                      stats=stats)
+
+
+def deform(mesh, lattice, level=10, device="auto"):
+    """One-shot smooth FFD of `mesh` by `lattice`; see `Deformer` and docs/api.md."""
+    return Deformer(mesh, lattice, level=level, device=device).deform()

@@ -1,0 +1,216 @@
+"""The two lattice kinds: the paper's B-spline volume and Blender's Lattice modifier.
+
+Both reduce to F(p) = p + sum_ijk W_ijk(s(p)) D_ijk with s(p) = A p + b an affine map into the
+lattice's parameter space and W a tensor product of three per-axis piecewise polynomials (built
+natively, `native/smoothffd/lattice/axis_basis.cpp`). A lattice object holds the *structure*
+(what a plan depends on) and the control values D (what changes every frame).
+"""
+
+import numpy as np
+
+from . import _core
+from ._validate import finite_float, float_array, int_triple
+
+_INTERPOLATIONS = ("LINEAR", "CARDINAL", "CATMULL_ROM", "BSPLINE")
+
+
+class _Lattice:
+    """Shared evaluation API; subclasses set `_spec`, `_values`, `_key`."""
+
+    def evaluate(self, points):
+        """Position and Jacobian of the deformation at `points` (N, 3), in float64.
+
+        Returns `(positions (N, 3), jacobians (N, 3, 3))` with `jacobians[n, r, c] = dF_r/dp_c`.
+        """
+        pts = float_array(points, "points")
+        if pts.ndim == 1 and pts.shape == (3,):
+            pts = pts[None, :]
+        if pts.ndim != 2 or pts.shape[1] != 3:
+            raise ValueError(f"points: expected shape (N, 3), got {pts.shape}")
+        return self._spec.evaluate(pts, self._values.reshape(-1, 3), np.ones(len(pts)))
+
+    def knot_planes(self):
+        """Per axis, the values c of the planes s_a(p) = c where the polynomial piece changes."""
+        return list(self._spec.planes())
+
+    @property
+    def object_to_param(self):
+        """(3, 4) affine map from object space to the lattice's parameter space."""
+        return self._map.copy()
+
+    @property
+    def degrees(self):
+        """Polynomial degree of each axis (their sum is the exact patch degree, paper sec. 3)."""
+        return tuple(self._spec.degrees)
+
+    @property
+    def shape(self):
+        return tuple(self._values.shape[:3])
+
+    def control_values(self):
+        """(nu, nv, nw, 3) displacements D_ijk."""
+        return self._values.copy()
+
+    def structure_key(self):
+        """Hashable; lattices with equal keys share a plan (only their values differ)."""
+        return self._key
+
+
+def _open_uniform_knots(degree, count):
+    inner = np.linspace(0.0, 1.0, count - degree + 1)
+    return np.concatenate([np.zeros(degree), inner, np.ones(degree)])
+
+
+class BSplineLattice(_Lattice):
+    """The paper's B-spline volume R(u, v, w) (Eq. 1) embedded in an axis-aligned box.
+
+    control_points: (nu, nv, nw, 3) in object space, index [i, j, k] along u, v, w.
+    degree: per axis, 1..5. knots: None (open uniform, clamped) or three non-decreasing arrays
+    of nu + degree + 1 (...) values. The box [box_min, box_max] maps affinely onto the knot
+    domain [knots[p], knots[n]] (default: the bounding box of the control points). Outside the
+    box the displacement of the nearest box point continues, as Blender does outside a lattice.
+    """
+
+    def __init__(self, control_points, degree=(2, 2, 2), knots=None, box_min=None, box_max=None):
+        cp = float_array(control_points, "control_points", shape=(None, None, None, 3))
+        self.degree = int_triple(degree, "degree", 1, 5)
+        counts = cp.shape[:3]
+        for a in range(3):
+            if counts[a] < self.degree[a] + 1:
+                raise ValueError(
+                    f"control_points: axis {a} has {counts[a]} points, degree {self.degree[a]} "
+                    f"needs at least {self.degree[a] + 1}")
+        if knots is None:
+            kv = [_open_uniform_knots(self.degree[a], counts[a]) for a in range(3)]
+        else:
+            if len(knots) != 3:
+                raise ValueError("knots: expected three knot vectors (u, v, w) or None")
+            kv = []
+            for a in range(3):
+                k = float_array(knots[a], f"knots[{a}]", shape=(None,))
+                want = counts[a] + self.degree[a] + 1
+                if len(k) != want:
+                    raise ValueError(f"knots[{a}]: expected {want} values "
+                                     f"(points + degree + 1), got {len(k)}")
+                if np.any(np.diff(k) < 0):
+                    raise ValueError(f"knots[{a}]: must be non-decreasing")
+                if not k[self.degree[a]] < k[counts[a]]:
+                    raise ValueError(f"knots[{a}]: the domain [knots[p], knots[n]] is empty")
+                kv.append(k)
+        self.knots = None if knots is None else [k.copy() for k in kv]
+        if box_min is None or box_max is None:
+            flat = cp.reshape(-1, 3)
+            bmin = flat.min(axis=0) if box_min is None else float_array(box_min, "box_min", (3,))
+            bmax = flat.max(axis=0) if box_max is None else float_array(box_max, "box_max", (3,))
+        else:
+            bmin = float_array(box_min, "box_min", (3,))
+            bmax = float_array(box_max, "box_max", (3,))
+        if np.any(bmax <= bmin):
+            raise ValueError(f"box_min/box_max: the box is empty or singular ({bmin} .. {bmax})")
+        self.box_min, self.box_max = bmin, bmax
+        self.control_points = cp
+        self._kv = kv
+        lo = np.array([kv[a][self.degree[a]] for a in range(3)])
+        hi = np.array([kv[a][counts[a]] for a in range(3)])
+        scale = (hi - lo) / (bmax - bmin)
+        self._map = np.zeros((3, 4))
+        for a in range(3):
+            self._map[a, a] = scale[a]
+            self._map[a, 3] = lo[a] - bmin[a] * scale[a]
+        self._greville = self._greville_points(kv, counts, lo, hi, bmin, bmax)
+        self._values = cp - self._greville
+        self._spec = _core.LatticeSpec.bspline(list(self.degree), kv, list(counts), self._map)
+        self._key = ("bspline", self.degree, counts, tuple(tuple(k) for k in kv),
+                     tuple(bmin), tuple(bmax))
+
+    def _greville_points(self, kv, counts, lo, hi, bmin, bmax):
+        axes = []
+        for a in range(3):
+            p, k = self.degree[a], kv[a]
+            xi = np.array([k[i + 1:i + p + 1].mean() for i in range(counts[a])])
+            axes.append(bmin[a] + (xi - lo[a]) / (hi[a] - lo[a]) * (bmax[a] - bmin[a]))
+        g = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+        return g
+
+    @classmethod
+    def identity(cls, box_min, box_max, shape=(5, 5, 5), degree=(2, 2, 2), knots=None):
+        """The lattice whose deformation is exactly the identity (points at the Greville
+        abscissae of the knots, mapped into the box)."""
+        shape = int_triple(shape, "shape", 2, 1000)
+        bmin = float_array(box_min, "box_min", (3,))
+        bmax = float_array(box_max, "box_max", (3,))
+        placeholder = np.zeros(tuple(shape) + (3,))
+        lat = cls(placeholder, degree=degree, knots=knots, box_min=bmin, box_max=bmax)
+        return cls(lat._greville, degree=degree, knots=knots, box_min=bmin, box_max=bmax)
+
+    def with_control_points(self, control_points):
+        """Same structure (degree, knots, box), new control points."""
+        return BSplineLattice(control_points, self.degree, self.knots, self.box_min, self.box_max)
+
+    with_points = with_control_points
+
+    @property
+    def rest_points(self):
+        """The identity lattice's control points (Greville abscissae in the box)."""
+        return self._greville.copy()
+
+
+class BlenderLattice(_Lattice):
+    """Exactly what Blender's Lattice modifier computes (reference-facts section 1).
+
+    rest_points / points: (nu, nv, nw, 3) in lattice space (LatticePoint.co / co_deform, or
+    the evaluated lattice's points), index [u, v, w]. interpolation: per axis LINEAR,
+    CARDINAL, CATMULL_ROM or BSPLINE. lattice_to_object: the 4x4 matrix M^-1 L (deformed
+    object's world matrix inverse times the lattice object's). strength scales the
+    displacement as the modifier's Strength does.
+    """
+
+    def __init__(self, rest_points, points, interpolation=("BSPLINE",) * 3,
+                 lattice_to_object=np.eye(4), strength=1.0):
+        rest = float_array(rest_points, "rest_points", shape=(None, None, None, 3))
+        pts = float_array(points, "points", shape=(None, None, None, 3))
+        if pts.shape != rest.shape:
+            raise ValueError(f"points: shape {pts.shape} differs from rest_points {rest.shape}")
+        if min(rest.shape[:3]) < 1:
+            raise ValueError("rest_points: every axis needs at least one point")
+        if isinstance(interpolation, str):
+            interpolation = (interpolation,) * 3
+        try:
+            interp = tuple(str(t).upper().replace("KEY_", "") for t in interpolation)
+        except TypeError:
+            raise TypeError("interpolation: expected a name or three names") from None
+        if len(interp) != 3 or any(t not in _INTERPOLATIONS for t in interp):
+            raise ValueError(f"interpolation: expected three of {_INTERPOLATIONS}, got {interpolation!r}")
+        m = float_array(lattice_to_object, "lattice_to_object", shape=(4, 4))
+        if not np.allclose(m[3], [0, 0, 0, 1]):
+            raise ValueError("lattice_to_object: the last row must be (0, 0, 0, 1)")
+        det = np.linalg.det(m[:3, :3])
+        scale = np.abs(m[:3, :3]).max()
+        if not abs(det) > 1e-12 * max(scale, 1e-300) ** 3:
+            raise ValueError("lattice_to_object: the matrix is singular")
+        self.strength = finite_float(strength, "strength")
+        self.rest_points, self.points = rest, pts
+        self.interpolation = interp
+        self.lattice_to_object = m
+        counts = rest.shape[:3]
+        inv = np.linalg.inv(m)
+        self._map = np.zeros((3, 4))
+        for a in range(3):
+            if counts[a] == 1:
+                continue  # a one-point axis contributes the constant weight 1
+            f = rest[0, 0, 0, a]
+            step = [0, 0, 0]
+            step[a] = 1
+            d = rest[step[0], step[1], step[2], a] - f
+            if not abs(d) > 0:
+                raise ValueError(f"rest_points: axis {a} has zero spacing")
+            self._map[a, :3] = inv[a, :3] / d
+            self._map[a, 3] = (inv[a, 3] - f) / d
+        self._values = self.strength * np.einsum("rc,uvwc->uvwr", m[:3, :3], pts - rest)
+        self._spec = _core.LatticeSpec.blender(list(interp), list(counts), self._map)
+        self._key = ("blender", interp, counts, tuple(self._map.ravel()))
+
+    def with_points(self, points):
+        """Same structure (rest points, interpolation, matrix), new deformed points."""
+        return BlenderLattice(self.rest_points, points, self.interpolation,
+                              self.lattice_to_object, self.strength)

@@ -65,6 +65,7 @@ def _vertex_weights(mesh, group_index, invert):
 
 
 SOURCE_FACE_ATTRIBUTE = "smooth_ffd_source_face"
+REST_ATTRIBUTE = "smooth_ffd_rest_position"
 
 
 # --- result mesh ------------------------------------------------------------------------------
@@ -87,6 +88,9 @@ def write_topology(mesh, res, source, materials):
     # Which source face each output triangle came from: for tools, tests and debugging.
     attr = mesh.attributes.new(SOURCE_FACE_ATTRIBUTE, 'INT', 'FACE')
     attr.data.foreach_set("value", np.ascontiguousarray(res.face_index, np.int32))
+    # Where each output vertex sits on the undeformed input (a rest-pose texture space).
+    attr = mesh.attributes.new(REST_ATTRIBUTE, 'FLOAT_VECTOR', 'POINT')
+    attr.data.foreach_set("vector", np.ascontiguousarray(res.rest_positions, np.float32).ravel())
     if res.uvs is not None:
         layer = mesh.uv_layers.new(name=source.uv_name or "UVMap")
         layer.data.foreach_set("uv", np.ascontiguousarray(res.uvs, np.float32).ravel())

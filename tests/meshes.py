@@ -1,0 +1,96 @@
+"""Small meshes built from numpy for the tests (no files, no Blender)."""
+
+import numpy as np
+
+import smoothffd
+
+
+def icosphere(subdivisions=2):
+    """Unit icosphere: (V, 3) positions on the sphere, (F, 3) triangles (20 * 4^s faces)."""
+    t = (1 + 5 ** 0.5) / 2
+    V = [[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t], [0, -1, -t],
+         [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]]
+    F = [[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
+         [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
+         [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]]
+    V = [np.array(v, float) / np.linalg.norm(v) for v in V]
+    for _ in range(subdivisions):
+        cache, out = {}, []
+
+        def mid(a, b):
+            key = (min(a, b), max(a, b))
+            if key not in cache:
+                m = V[a] + V[b]
+                V.append(m / np.linalg.norm(m))
+                cache[key] = len(V) - 1
+            return cache[key]
+
+        for a, b, c in F:
+            ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
+            out += [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
+        F = out
+    return np.array(V), np.array(F, dtype=np.int64)
+
+
+def sphere_mesh(subdivisions=2):
+    """Icosphere with the exact sphere normals as split normals."""
+    V, F = icosphere(subdivisions)
+    return smoothffd.Mesh(V, F, corner_normals=V[F.reshape(-1)])
+
+
+def cube_mesh(size=1.0, sharp=True):
+    """Cube [-size, size]^3 as 6 quads sharing 8 vertices. sharp=True: split normals (each
+    face's own normal at its corners); sharp=False: smooth vertex normals."""
+    s = size
+    V = np.array([[x, y, z] for x in (-s, s) for y in (-s, s) for z in (-s, s)], float)
+    quads = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
+    cv = np.array(quads).reshape(-1)
+    fo = np.arange(0, 25, 4)
+    normals = None
+    if sharp:
+        fn = []
+        for q in quads:
+            a, b, c = V[q[0]], V[q[1]], V[q[2]]
+            n = np.cross(b - a, c - a)
+            fn += [n / np.linalg.norm(n)] * 4
+        normals = np.array(fn)
+    return smoothffd.Mesh(V, (cv, fo), corner_normals=normals)
+
+
+def cube_face_normals(mesh):
+    """Unit normal of each (planar) input face, (F, 3)."""
+    out = []
+    for f in range(mesh.face_count):
+        idx = mesh.corner_vertices[mesh.face_offsets[f]:mesh.face_offsets[f + 1]]
+        a, b, c = mesh.positions[idx[:3]]
+        n = np.cross(b - a, c - a)
+        out.append(n / np.linalg.norm(n))
+    return np.array(out)
+
+
+def edge_counts(triangles):
+    """For each undirected edge of a triangle list, how many triangles use it."""
+    T = np.asarray(triangles)
+    e = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(e, axis=0, return_counts=True)
+    return counts
+
+
+def random_bspline_lattice(rng, box_min, box_max, shape, degree, amount):
+    """Identity lattice with every control point moved by a uniform random offset."""
+    lat = smoothffd.BSplineLattice.identity(box_min, box_max, shape=shape, degree=degree)
+    cp = lat.control_points + rng.uniform(-amount, amount, lat.control_points.shape)
+    return lat.with_control_points(cp)
+
+
+def twist_lattice(lattice, degrees):
+    """Rotate the control points about z by an angle growing linearly with z."""
+    cp = lattice.control_points.copy()
+    z = cp[..., 2]
+    zn = (z - z.min()) / max(z.max() - z.min(), 1e-12)
+    ang = np.radians(degrees) * (zn - 0.5)
+    c, s = np.cos(ang), np.sin(ang)
+    x, y = cp[..., 0].copy(), cp[..., 1].copy()
+    cp[..., 0] = c * x - s * y
+    cp[..., 1] = s * x + c * y
+    return lattice.with_control_points(cp)

@@ -78,6 +78,6 @@ def test_command_line_render(tmp_path):
     frames = json.load(open(record))
     assert [f["frame"] for f in frames] == [1, 2, 3]
     for f in frames:
-        assert f["tris"] == f["base_tris"] * 3 ** 2, f   # render level 3 in test_render.py
+        assert f["tris"] == f["patches"] * 3 ** 2, f   # render level 3 in test_render.py
         assert f["err"] < 1e-5 * 1.6, f                     # lattice size 1.6
         assert f["status"].startswith("OK"), f

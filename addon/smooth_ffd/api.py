@@ -61,23 +61,23 @@ def apply_smooth_ffd(obj, mod):
     The old mesh data-block is left to Blender (undo keeps it); the hidden result object is
     deleted. Raises RuntimeError (source untouched) when the modifier has no valid result.
     """
-    if not engine.update_modifier(obj, mod, bpy.context.evaluated_depsgraph_get(),
-                                  render=True, force=True):
-        raise RuntimeError(f"Smooth FFD cannot be applied: {status(mod)}")
-    ro = engine.result_object(obj, mod, create=False)
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    handlers.guarded(depsgraph.update)
-    old_mesh = obj.data
-    if old_mesh.users > 1:
-        # Blender refuses to apply to shared data; the other users keep the original mesh.
-        obj.data = old_mesh.copy()
-    with bpy.context.temp_override(object=obj, active_object=obj, selected_objects=[obj]):
-        # The operator applies exactly this modifier (not the ones after it) and records undo.
-        result = handlers.guarded(bpy.ops.object.modifier_apply, modifier=mod.name)
-    if 'FINISHED' not in result:
-        raise RuntimeError(f"applying {mod.name!r} failed: {result}")
-    _delete_result(ro)
-    engine.forget(obj, mod)
+    with handlers.muted():
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        if not engine.update_modifier(obj, mod, depsgraph, render=True, force=True):
+            raise RuntimeError(f"Smooth FFD cannot be applied: {status(mod)}")
+        ro = engine.result_object(obj, mod, create=False)
+        depsgraph.update()
+        if obj.data.users > 1:
+            # Blender refuses to apply to shared data; the other users keep the original mesh.
+            obj.data = obj.data.copy()
+        with bpy.context.temp_override(object=obj, active_object=obj, selected_objects=[obj]):
+            # The operator applies exactly this modifier (not the ones after it) and
+            # records undo.
+            result = bpy.ops.object.modifier_apply(modifier=mod.name)
+        if 'FINISHED' not in result:
+            raise RuntimeError(f"applying {mod.name!r} failed: {result}")
+        _delete_result(ro)
+        engine.forget(obj, mod)
     return obj.data
 
 

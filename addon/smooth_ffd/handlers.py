@@ -3,6 +3,8 @@
 Writing the result mesh tags the depsgraph, which fires depsgraph_update_post again: a guard
 stops that re-entry, and update_modifier skips work when its inputs have not changed.
 """
+import contextlib
+
 import bpy
 from bpy.app.handlers import persistent
 
@@ -49,15 +51,22 @@ def update_all(scene=None, depsgraph=None, render=None, changed_meshes=None, for
         _busy = False
 
 
-def guarded(fn, *args, **kwargs):
-    """Runs fn with the handlers muted (our own depsgraph updates must not recurse)."""
+@contextlib.contextmanager
+def muted():
+    """Handlers do nothing inside: our own depsgraph updates must neither recurse nor put
+    the viewport level back over a render-level result (Apply)."""
     global _busy
     was = _busy
     _busy = True
     try:
-        return fn(*args, **kwargs)
+        yield
     finally:
         _busy = was
+
+
+def guarded(fn, *args, **kwargs):
+    with muted():
+        return fn(*args, **kwargs)
 
 
 def _changed_ids(depsgraph):

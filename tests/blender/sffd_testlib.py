@@ -205,3 +205,10 @@ def points_twin(points, obj, lat, strength=1.0):
     mod.object = lat
     mod.strength = strength
     return twin
+
+
+def patches(obj, mod):
+    """Patches of the modifier's current plan: input triangles cut by the lattice's knot
+    planes. Each patch is tessellated into level^2 output triangles."""
+    t = engine.last_timing(obj, mod)
+    return int(t["stats"]["patches"]) if t else -1

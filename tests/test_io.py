@@ -1,0 +1,249 @@
+"""OBJ reading/writing (smoothffd.io): pure Python, no native core needed."""
+import re
+import warnings
+
+import numpy as np
+import pytest
+
+from smoothffd import io
+
+
+def write_text(tmp_path, text, name="m.obj"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+CUBE_QUADS = """\
+# a unit cube, 6 quads, flat normals, one UV square per face
+mtllib cube.mtl
+o Cube
+v 0 0 0
+v 1 0 0
+v 1 1 0
+v 0 1 0
+v 0 0 1
+v 1 0 1
+v 1 1 1
+v 0 1 1
+vt 0 0
+vt 1 0
+vt 1 1
+vt 0 1
+vn 0 0 -1
+vn 0 0 1
+vn 0 -1 0
+vn 1 0 0
+vn 0 1 0
+vn -1 0 0
+usemtl Material
+s off
+g bottom
+f 1/1/1 4/2/1 3/3/1 2/4/1
+f 5/1/2 6/2/2 7/3/2 8/4/2
+g sides
+f 1/1/3 2/2/3 6/3/3 5/4/3
+f 2/1/4 3/2/4 7/3/4 6/4/4
+f 3/1/5 4/2/5 8/3/5 7/4/5
+f 4/1/6 1/2/6 5/3/6 8/4/6
+"""
+
+
+def test_read_quads_with_normals_and_uvs(tmp_path):
+    d = io.read_obj(write_text(tmp_path, CUBE_QUADS))
+    assert d.positions.shape == (8, 3) and d.positions.dtype == np.float64
+    assert d.face_offsets.tolist() == [0, 4, 8, 12, 16, 20, 24]
+    assert d.corner_vertices[:4].tolist() == [0, 3, 2, 1]
+    assert d.corner_normals.shape == (24, 3)
+    np.testing.assert_array_equal(d.corner_normals[4:8], [[0, 0, 1]] * 4)
+    np.testing.assert_array_equal(d.uvs[:4], [[0, 0], [1, 0], [1, 1], [0, 1]])
+    # the pair Mesh() takes
+    cv, fo = d.faces
+    assert cv is d.corner_vertices and fo is d.face_offsets
+
+
+def test_fast_and_slow_reader_agree(tmp_path):
+    p = write_text(tmp_path, CUBE_QUADS)
+    fast = io._read_fast(p.read_text(), str(p))
+    slow = io._read_slow(p.read_text(), str(p))
+    assert fast is not None
+    for a, b in zip(fast, slow):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_negative_indices_are_relative(tmp_path):
+    text = """\
+v 0 0 0
+v 1 0 0
+v 0 1 0
+vn 0 0 1
+f -3//-1 -2//-1 -1//-1
+v 5 5 5
+v 6 5 5
+v 5 6 5
+f -3//1 -2//1 -1//1
+"""
+    d = io.read_obj(write_text(tmp_path, text))
+    assert d.corner_vertices.tolist() == [0, 1, 2, 3, 4, 5]
+    np.testing.assert_array_equal(d.corner_normals, [[0, 0, 1]] * 6)
+    assert d.uvs is None
+
+
+def test_tolerated_odd_layouts(tmp_path):
+    # CRLF, tabs, indentation, inline comments, vertex colours, 1D texture coordinates,
+    # "v/t" corners, polylines and unknown keywords.
+    text = (
+        "v 0 0 0 1 0 0\r\n"
+        "  v 1 0 0 0 1 0 # indented, with colour\r\n"
+        "v\t0\t1\t0\t0 0 1\r\n"
+        "vt 0.5\r\n"
+        "vt 0.25 0.75 0\r\n"
+        "l 1 2\r\n"
+        "xyz whatever\r\n"
+        "f 1/1 2/2 3/1\r\n"
+    )
+    d = io.read_obj(write_text(tmp_path, text))
+    np.testing.assert_array_equal(d.positions, [[0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    np.testing.assert_array_equal(d.uvs, [[0.5, 0], [0.25, 0.75], [0.5, 0]])
+    assert d.corner_normals is None
+
+
+def test_mixed_normals_are_dropped_and_missing_uvs_zeroed(tmp_path):
+    text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nvt 1 1\nf 1/1/1 2//1 3/1/1\nf 1 2 3\n"
+    with pytest.warns(UserWarning) as rec:
+        d = io.read_obj(write_text(tmp_path, text))
+    msgs = " ".join(str(r.message) for r in rec)
+    assert "normals" in msgs and "texture" in msgs
+    assert d.corner_normals is None
+    np.testing.assert_array_equal(d.uvs, [[1, 1], [0, 0], [1, 1], [0, 0], [0, 0], [0, 0]])
+
+
+def test_forward_references_allowed(tmp_path):
+    d = io.read_obj(write_text(tmp_path, "f 1 2 3\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"))
+    assert d.corner_vertices.tolist() == [0, 1, 2]
+
+
+@pytest.mark.parametrize(
+    "text, line, pattern",
+    [
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", 4, "vertex index 4 .* out of range"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\n\nf 1 2\n", 5, "at least 3 corners"),
+        ("v 0 0 0\nv 1 x 0\nv 0 1 0\nf 1 2 3\n", 2, "non-numeric vertex value 'x'"),
+        ("v 0 0\n", 1, "3 coordinates"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", 4, "index 0"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf -4 1 2\n", 4, "vertex index -4 .* out of range"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1/1 2/1 3/1\n", 5, "texture coordinate index 1"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\n# c\nf 1//1 2//2 3//1\n", 6, "normal index 2"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 a\n", 4, "non-integer index"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3/4/5/6\n", 4, "malformed face corner"),
+        ("v 0 0 0\nvn 0 nan 1\n", 2, "non-finite normal"),
+        ("vt\n", 1, "texture coordinate needs"),
+    ],
+)
+def test_malformed_input_names_file_and_line(tmp_path, text, line, pattern):
+    p = write_text(tmp_path, text, "bad.obj")
+    with pytest.raises(ValueError) as exc:
+        io.read_obj(p)
+    msg = str(exc.value)
+    assert msg.startswith(f"{p}:{line}: "), msg
+    assert re.search(pattern, msg), msg
+
+
+def random_triangle_mesh(rng, V=50, T=80, dtype=np.float32):
+    pos = rng.normal(size=(V, 3)).astype(dtype)
+    tri = rng.integers(0, V, size=(T, 3)).astype(np.int32)
+    vn = rng.normal(size=(V, 3)).astype(dtype)
+    cn = vn[tri]  # mostly per-vertex normals ...
+    cn[::7, 0] = rng.normal(size=(len(cn[::7]), 3))  # ... with some split corners
+    uv = rng.random(size=(T, 3, 2)).astype(dtype)
+    return pos, tri, cn, uv
+
+
+@pytest.mark.parametrize("with_normals", [False, True])
+@pytest.mark.parametrize("with_uvs", [False, True])
+def test_triangle_round_trip_is_exact(tmp_path, with_normals, with_uvs):
+    pos, tri, cn, uv = random_triangle_mesh(np.random.default_rng(1))
+    p = tmp_path / "out.obj"
+    io.write_obj(p, pos, tri, cn if with_normals else None, uv if with_uvs else None, header="test\nfile")
+    assert p.read_text().startswith("# test\n# file\n")
+    d = io.read_obj(p)
+    # float32 written with 9 significant digits reads back to the same float32
+    np.testing.assert_array_equal(d.positions.astype(np.float32), pos)
+    np.testing.assert_array_equal(d.corner_vertices.reshape(-1, 3), tri)
+    if with_normals:
+        np.testing.assert_array_equal(d.corner_normals.astype(np.float32), cn.reshape(-1, 3))
+    else:
+        assert d.corner_normals is None
+    if with_uvs:
+        np.testing.assert_array_equal(d.uvs.astype(np.float32), uv.reshape(-1, 2))
+    else:
+        assert d.uvs is None
+
+
+def test_float64_round_trip_is_exact(tmp_path):
+    pos, tri, cn, _ = random_triangle_mesh(np.random.default_rng(2), dtype=np.float64)
+    io.write_obj(tmp_path / "o.obj", pos, tri, cn)
+    d = io.read_obj(tmp_path / "o.obj")
+    np.testing.assert_array_equal(d.positions, pos)
+    np.testing.assert_array_equal(d.corner_normals, cn.reshape(-1, 3))
+
+
+def test_normals_and_uvs_are_deduplicated(tmp_path):
+    # 2 triangles sharing an edge, all corners with the same normal and 2 distinct UVs
+    pos = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], np.float32)
+    tri = np.array([[0, 1, 2], [2, 1, 3]])
+    cn = np.tile(np.float32([0, 0, 1]), (2, 3, 1))
+    uv = np.zeros((2, 3, 2), np.float32)
+    uv[1, 2] = 1
+    p = tmp_path / "d.obj"
+    io.write_obj(p, pos, tri, cn, uv)
+    lines = p.read_text().splitlines()
+    assert sum(l.startswith("vn ") for l in lines) == 1
+    assert sum(l.startswith("vt ") for l in lines) == 2
+    assert sum(l.startswith("f ") for l in lines) == 2
+
+
+def test_dedupe_is_exact_and_handles_signed_zero():
+    rows = np.array([[0.0, 1, 2], [-0.0, 1, 2], [0.0, 1, 2], [3, 4, 5]], np.float32)
+    uniq, inv = io._dedupe(rows)
+    assert len(uniq) == 3  # -0.0 and 0.0 differ in bits, and both must survive a round trip
+    np.testing.assert_array_equal(uniq[inv].view(np.uint32), rows.view(np.uint32))
+    uniq, inv = io._dedupe_corners(rows, np.array([0, 0, 1, 1]), 2)
+    assert len(uniq) == 3
+    np.testing.assert_array_equal(uniq[inv].view(np.uint32), rows.view(np.uint32))
+
+
+def test_polygon_round_trip(tmp_path):
+    d = io.read_obj(write_text(tmp_path, CUBE_QUADS))
+    # add a pentagon and a triangle to mix sizes
+    cv = np.concatenate([d.corner_vertices, [0, 1, 2, 3, 4], [5, 6, 7]])
+    fo = np.concatenate([d.face_offsets, [29, 32]])
+    p = tmp_path / "poly.obj"
+    io.write_obj(p, d.positions, (cv, fo))
+    e = io.read_obj(p)
+    np.testing.assert_array_equal(e.corner_vertices, cv)
+    np.testing.assert_array_equal(e.face_offsets, fo)
+    # with normals per corner (C, 3)
+    cn = np.random.default_rng(3).normal(size=(len(cv), 3))
+    io.write_obj(p, d.positions, (cv, fo), corner_normals=cn)
+    np.testing.assert_array_equal(io.read_obj(p).corner_normals, cn)
+
+
+def test_write_rejects_bad_input(tmp_path):
+    pos = np.zeros((3, 3))
+    with pytest.raises(ValueError, match="positions"):
+        io.write_obj(tmp_path / "x.obj", np.zeros((3, 2)), [[0, 1, 2]])
+    with pytest.raises(ValueError, match="out of range"):
+        io.write_obj(tmp_path / "x.obj", pos, np.array([[0, 1, 3]]))
+    with pytest.raises(ValueError, match="corner_normals"):
+        io.write_obj(tmp_path / "x.obj", pos, np.array([[0, 1, 2]]), corner_normals=np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="face_offsets"):
+        io.write_obj(tmp_path / "x.obj", pos, (np.array([0, 1, 2]), np.array([0, 2])))
+
+
+def test_read_obj_mesh_builds_core_mesh(tmp_path):
+    pytest.importorskip("smoothffd._core", reason="native module not built: run scripts/build.sh")
+    import smoothffd
+
+    mesh = io.read_obj_mesh(write_text(tmp_path, CUBE_QUADS))
+    assert isinstance(mesh, smoothffd.Mesh)

@@ -94,3 +94,41 @@ def twist_lattice(lattice, degrees):
     cp[..., 0] = c * x - s * y
     cp[..., 1] = s * x + c * y
     return lattice.with_control_points(cp)
+
+
+def grid_cube(n, size=1.0):
+    """Cube [-size, size]^3, each face split into n x n quads, welded vertices, split face
+    normals (sharp edges): the paper's error-test cube (sec. 6.3)."""
+    index, V, cv, fo, cn = {}, [], [], [0], []
+
+    def vid(p):
+        key = tuple(np.round(p, 9))
+        if key not in index:
+            index[key] = len(V)
+            V.append(p)
+        return index[key]
+
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            nrm = np.zeros(3)
+            nrm[axis] = sign
+            u, w = np.zeros(3), np.zeros(3)
+            u[(axis + 1) % 3], w[(axis + 2) % 3] = 1, 1
+            if sign < 0:
+                u, w = w, u
+            for i in range(n):
+                for j in range(n):
+                    for di, dj in ((0, 0), (1, 0), (1, 1), (0, 1)):
+                        a, b = -1 + 2 * (i + di) / n, -1 + 2 * (j + dj) / n
+                        cv.append(vid(size * (nrm + a * u + b * w)))
+                        cn.append(nrm)
+                    fo.append(len(cv))
+    return smoothffd.Mesh(np.array(V), (np.array(cv), np.array(fo)), corner_normals=np.array(cn))
+
+
+def bulge_twist(lattice, bulge=0.25, twist_degrees=45):
+    """The documented deformation family of the error tests: control points pushed outwards
+    by (1 + bulge * exp(-|p|^2)), then twisted about z by `twist_degrees` over the height."""
+    cp = lattice.control_points.copy()
+    cp *= 1 + bulge * np.exp(-np.sum(cp ** 2, axis=-1, keepdims=True))
+    return twist_lattice(lattice.with_control_points(cp), twist_degrees)

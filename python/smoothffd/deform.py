@@ -126,6 +126,11 @@ class Deformer:
         if lat is None:
             lat = self.lattice
         elif not isinstance(lat, _Lattice):
+            shape = tuple(np.shape(lat))
+            want = self.lattice.shape + (3,)
+            if shape != want:
+                raise ValueError(f"control_points/points: expected shape {want} like the planned "
+                                 f"lattice, got {shape}")
             lat = self.lattice.with_points(lat)
         if lat.structure_key() != self._key:
             self._plan_for(lat)

@@ -58,6 +58,10 @@ __all__ = [
 
 BLENDER_TYPES = ("LINEAR", "CARDINAL", "CATMULL_ROM", "BSPLINE")
 
+# Points within this relative distance of a lattice's outer boundary count as on it (for the
+# choice of one-sided Jacobian only; positions are continuous there).
+BOUNDARY_EPS = 1e-12
+
 
 def _cardinal(t, fc):
     return (
@@ -150,7 +154,16 @@ def _blender_axis_stencil(q_a, frame, kind):
         dw = (0.0, 0.0, 0.0, 0.0)
     else:
         s = (q_a - f) / d
+        # Closed lattice: a point on (or within rounding of) the first or last lattice plane
+        # s = 0, s = n-1 takes the cell inside the lattice, so the Jacobian there is the
+        # one-sided inner one.  Positions are the same either way (the weights are continuous);
+        # this only matters for LINEAR, the other types are C1.
+        eps = BOUNDARY_EPS * max(1.0, float(n))
+        if -eps < s < 0.0:
+            s = 0.0
         i0 = int(math.floor(s))
+        if abs(s - (n - 1)) < eps:
+            s, i0 = float(n - 1), n - 2
         t = s - i0
         w = blender_weights(t, kind)
         dw = tuple(x / d for x in blender_weights_derivative(t, kind))
@@ -334,9 +347,11 @@ def _bspline_core(control_points, degree, knots, box_min, box_max, p, jac):
     jout = np.empty((P.shape[0], 3, 3))
     for n_, x in enumerate(P):
         c = np.minimum(np.maximum(x, bmin), bmax)  # nearest box point
-        # closed box: on the boundary the one-sided derivative from inside is used (so the
-        # tangential derivatives on a face lying on the box boundary are the in-box ones)
-        inside = (x >= bmin) & (x <= bmax)
+        # closed box: on the boundary (or within rounding of it) the one-sided derivative from
+        # inside is used, so the tangential derivatives on a face lying on the box boundary are
+        # the in-box ones
+        tol = BOUNDARY_EPS * np.maximum(ext, np.maximum(np.abs(bmin), np.abs(bmax)))
+        inside = (x >= bmin - tol) & (x <= bmax + tol)
         s = lo + (c - bmin) * scale
         N = [bspline_basis(kv[a], shape[a], deg[a], s[a]) for a in range(3)]
         R = np.einsum("i,j,k,ijkd->d", N[0], N[1], N[2], cp)

@@ -2,6 +2,7 @@
 
 import logging
 import os
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -72,6 +73,9 @@ class Deformer:
         self.threads = positive_int(threads, "threads", 0, 4096)
         self.mesh = mesh
         self.requested_device = device
+        # The evaluators keep per-frame buffers, and native work runs without the GIL: calls
+        # from several threads take turns instead of racing on those buffers.
+        self._lock = threading.Lock()
         need, avail = _estimate_bytes(mesh, self.level), _available_memory()
         if avail is not None and need > avail:
             raise MemoryError(f"level {self.level}: the output needs at least {need / 2**30:.1f} GiB, "
@@ -122,6 +126,10 @@ class Deformer:
         one) or just its new points: (nu, nv, nw, 3) `points` for a BlenderLattice, control
         points for a BSplineLattice. None re-evaluates the current lattice.
         """
+        with self._lock:
+            return self._deform(lattice_or_points)
+
+    def _deform(self, lattice_or_points):
         lat = lattice_or_points
         if lat is None:
             lat = self.lattice

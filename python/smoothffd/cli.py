@@ -1,0 +1,348 @@
+"""Command line: ``python3 -m smoothffd {deform,make-lattice,info} ...``.
+
+    deform IN.obj --lattice L.json -o OUT.obj [--level 10] [--device auto|cpu|cuda]
+    make-lattice (--bbox-of IN.obj | --box X0 Y0 Z0 X1 Y1 Z1) [--shape 5 5 5] [--degree 2 2 2]
+                 [--twist DEG | --bend DEG | --bulge F] [--axis z] -o L.json
+    info FILE.obj|FILE.json
+
+Progress goes to stderr, one line per stage with its time. Bad input (unreadable or malformed
+files, invalid arguments) exits with status 2 and a one-line message; anything else is a bug
+and keeps its traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import math
+import os
+import sys
+import time
+
+import numpy as np
+
+from . import io as objio
+from . import lattice_json
+
+# Errors that mean "your input is wrong", not "smoothffd is broken".
+_USER_ERRORS = (ValueError, TypeError, OSError, RuntimeError, MemoryError)
+
+
+class UserError(Exception):
+    """A problem with the command line's input; reported in one line, exit status 2."""
+
+
+class _Progress:
+    """Stage lines on stderr: the name is printed when a stage starts (so a long stage shows
+    what is running), its details and wall time when it ends."""
+
+    def __init__(self, quiet=False, stream=None):
+        self.quiet = quiet
+        self.stream = stream or sys.stderr
+        self.open = False
+        self.times = {}
+
+    @contextlib.contextmanager
+    def stage(self, name):
+        note = {}
+        t0 = time.perf_counter()
+        if not self.quiet:
+            print(f"smoothffd: {name:<6} ...", end="", file=self.stream, flush=True)
+            self.open = True
+        yield note
+        dt = time.perf_counter() - t0
+        self.times[name] = dt
+        if not self.quiet:
+            detail = f" {note['detail']}" if note.get("detail") else ""
+            print(f"{detail} ({dt:.2f} s)", file=self.stream, flush=True)
+            self.open = False
+
+    def abort(self):
+        if self.open:
+            print(" failed", file=self.stream, flush=True)
+            self.open = False
+
+
+# ----------------------------------------------------------------------------------------
+# make-lattice helpers (pure numpy: usable and testable without the core)
+
+
+def open_uniform_knots(degree, count):
+    """Clamped uniform knot vector on [0, 1]: count + degree + 1 values."""
+    inner = np.linspace(0.0, 1.0, count - degree + 1)
+    return np.concatenate([np.zeros(degree), inner, np.ones(degree)])
+
+
+def greville_grid(box_min, box_max, shape, degree):
+    """Control points of the identity B-spline volume over the box (open-uniform knots):
+    the Greville abscissae (means of `degree` consecutive knots) mapped into the box.
+    -> (nu, nv, nw, 3)."""
+    axes = []
+    for a in range(3):
+        k = open_uniform_knots(degree[a], shape[a])
+        xi = np.array([k[i + 1:i + degree[a] + 1].mean() for i in range(shape[a])])
+        axes.append(box_min[a] + xi * (box_max[a] - box_min[a]))
+    return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+
+
+def deform_points(points, box_min, box_max, mode=None, amount=0.0, axis=2):
+    """Apply an example deformation to points (..., 3) in object space.
+
+    The deformation is relative to the box: h in [0, 1] is the position along `axis`.
+      twist  amount degrees: rotation about the box's central axis by amount * (h - 1/2)
+      bend   amount degrees: the axis is bent into a circular arc turning by `amount` over the
+             box length, towards the next axis (z -> x, x -> y, y -> z); the centre is fixed
+      bulge  amount factor: distances from the central axis scaled by 1 + amount * 4h(1 - h)
+    """
+    p = np.array(points, dtype=np.float64)
+    if mode is None or amount == 0:
+        return p
+    lo, hi = np.asarray(box_min, float), np.asarray(box_max, float)
+    c = (lo + hi) / 2
+    length = hi[axis] - lo[axis]
+    b, d = (axis + 1) % 3, (axis + 2) % 3  # the two cross-section axes
+    q = p - c
+    h = (p[..., axis] - lo[axis]) / length
+    if mode == "twist":
+        ang = math.radians(amount) * (h - 0.5)
+        cs, sn = np.cos(ang), np.sin(ang)
+        qb, qd = q[..., b].copy(), q[..., d].copy()
+        q[..., b] = cs * qb - sn * qd
+        q[..., d] = sn * qb + cs * qd
+    elif mode == "bend":
+        theta = math.radians(amount)
+        radius = length / theta  # arc of the central axis keeps its length
+        phi = q[..., axis] / radius
+        r = radius - q[..., b]
+        q[..., b] = radius - r * np.cos(phi)
+        q[..., axis] = r * np.sin(phi)
+    elif mode == "bulge":
+        s = 1.0 + amount * 4.0 * h * (1.0 - h)
+        q[..., b] *= s
+        q[..., d] *= s
+    else:
+        raise ValueError(f"deformation: unknown mode {mode!r}")
+    return q + c
+
+
+def padded_box(positions, margin):
+    """Bounding box of positions (N, 3) grown by margin * (largest extent) on every side, so
+    flat meshes still get a box with volume."""
+    p = np.asarray(positions, dtype=np.float64)
+    if len(p) == 0:
+        raise ValueError("the mesh has no vertices")
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    pad = margin * max(float((hi - lo).max()), 1e-12)
+    return lo - pad, hi + pad
+
+
+def make_lattice_doc(box_min, box_max, shape, degree=(2, 2, 2), kind="bspline", mode=None,
+                     amount=0.0, axis=2, interpolation="BSPLINE", name=None):
+    """A lattice JSON document: the identity lattice of the box, then the deformation."""
+    box_min, box_max = np.asarray(box_min, float), np.asarray(box_max, float)
+    if kind == "bspline":
+        rest = greville_grid(box_min, box_max, shape, degree)
+        doc = {"format": lattice_json.FORMAT, "version": lattice_json.VERSION, "kind": "bspline",
+               "shape": list(shape), "degree": list(degree), "knots": None,
+               "box_min": box_min.tolist(), "box_max": box_max.tolist(),
+               "control_points": deform_points(rest, box_min, box_max, mode, amount, axis).reshape(-1, 3).tolist()}
+    elif kind == "blender":
+        rest = lattice_json.blender_rest_grid(shape)
+        # lattice space [-0.5, 0.5]^3 -> the box; a one-point axis sits at the box centre
+        m = np.eye(4)
+        m[:3, :3] = np.diag(box_max - box_min)
+        m[:3, 3] = (box_min + box_max) / 2
+        obj = rest @ m[:3, :3].T + m[:3, 3]
+        moved = deform_points(obj, box_min, box_max, mode, amount, axis)
+        pts = (moved - m[:3, 3]) @ np.linalg.inv(m[:3, :3]).T
+        doc = {"format": lattice_json.FORMAT, "version": lattice_json.VERSION, "kind": "blender",
+               "shape": list(shape), "interpolation": [interpolation] * 3,
+               "lattice_to_object": m.tolist(), "strength": 1.0,
+               "rest_points": rest.reshape(-1, 3).tolist(), "points": pts.reshape(-1, 3).tolist()}
+    else:
+        raise ValueError(f"--kind: expected bspline or blender, got {kind!r}")
+    if name:
+        doc["name"] = name
+    lattice_json.parse_lattice(doc, "make-lattice")  # validates shape/degree combinations
+    return doc
+
+
+# ----------------------------------------------------------------------------------------
+# commands
+
+
+def cmd_deform(args, progress):
+    import smoothffd  # the core: only this command needs it
+
+    with progress.stage("read") as note:
+        mesh = objio.read_obj_mesh(args.input)
+        lattice = lattice_json.load_lattice(args.lattice)
+        note["detail"] = (f"{args.input}: {mesh.vertex_count:,} vertices, {mesh.face_count:,} faces; "
+                          f"{type(lattice).__name__} {'x'.join(map(str, np.shape(lattice.control_values())[:3]))}")
+    with progress.stage("plan") as note:
+        deformer = smoothffd.Deformer(mesh, lattice, level=args.level, device=args.device,
+                                      threads=args.threads)
+        note["detail"] = f"level {args.level}, device {deformer.device}"
+    with progress.stage("deform") as note:
+        res = deformer.deform()
+        note["detail"] = f"{len(res.triangles):,} triangles, {len(res.positions):,} vertices"
+    with progress.stage("write") as note:
+        objio.write_obj(args.output, res.positions, res.triangles, res.corner_normals, res.uvs,
+                        header=f"smoothffd deform {os.path.basename(args.input)} "
+                               f"--lattice {os.path.basename(args.lattice)} --level {args.level}")
+        note["detail"] = f"{args.output}, {os.path.getsize(args.output) / 2**20:.1f} MiB"
+    if args.stats:
+        stats = dict(res.stats)
+        stats["cli_seconds"] = progress.times
+        print(json.dumps(stats, indent=2, default=str))
+    return 0
+
+
+def cmd_make_lattice(args, progress):
+    if args.bbox_of:
+        with progress.stage("read") as note:
+            d = objio.read_obj(args.bbox_of)
+            note["detail"] = f"{args.bbox_of}: {len(d.positions):,} vertices"
+        box_min, box_max = padded_box(d.positions, args.margin)
+    else:
+        lo, hi = np.array(args.box[:3], float), np.array(args.box[3:], float)
+        if (hi <= lo).any():
+            raise UserError("--box: each max must exceed its min")
+        box_min, box_max = lo, hi
+    mode, amount = None, 0.0
+    for m in ("twist", "bend", "bulge"):
+        if getattr(args, m) is not None:
+            mode, amount = m, getattr(args, m)
+    if not math.isfinite(amount):
+        raise UserError(f"--{mode}: expected a finite number")
+    doc = make_lattice_doc(box_min, box_max, tuple(args.shape), tuple(args.degree), args.kind,
+                           mode, amount, "xyz".index(args.axis), args.interpolation,
+                           name=f"{mode or 'identity'} {amount:g}" if mode else "identity")
+    with progress.stage("write") as note:
+        lattice_json.save_lattice(args.output, doc)
+        note["detail"] = f"{args.output}: {doc['kind']} {'x'.join(map(str, args.shape))}, {doc['name']}"
+    return 0
+
+
+def _describe_obj(path):
+    from . import metrics
+
+    d = objio.read_obj(path)
+    sizes = np.diff(d.face_offsets)
+    lines = [f"file        {path}",
+             f"vertices    {len(d.positions):,}",
+             f"faces       {len(sizes):,} ({int((sizes == 3).sum()):,} triangles, "
+             f"{int((sizes == 4).sum()):,} quads, {int((sizes > 4).sum()):,} n-gons, "
+             f"largest {int(sizes.max()) if len(sizes) else 0} corners)",
+             f"corners     {len(d.corner_vertices):,}; fan triangulation: {int((sizes - 2).sum()):,} triangles"]
+    if d.corner_normals is not None:
+        lines.append(f"normals     per corner, {len(np.unique(d.corner_normals, axis=0)):,} distinct")
+    else:
+        lines.append("normals     none (smooth vertex normals will be computed)")
+    lines.append(f"uvs         {'per corner' if d.uvs is not None else 'none'}")
+    if len(d.positions):
+        lo, hi = d.positions.min(axis=0), d.positions.max(axis=0)
+        lines.append(f"bbox        min {np.array2string(lo, precision=4)} max {np.array2string(hi, precision=4)}")
+    if len(sizes):
+        # fan triangles share the polygons' edges, so the edge report is the polygon mesh's
+        first = np.repeat(d.face_offsets[:-1], sizes - 2)
+        k = np.arange(int((sizes - 2).sum())) - np.repeat(np.cumsum(sizes - 2) - (sizes - 2), sizes - 2)
+        tri = np.stack([d.corner_vertices[first], d.corner_vertices[first + k + 1],
+                        d.corner_vertices[first + k + 2]], axis=1)
+        r = metrics.edge_report(tri)
+        lines.append(f"edges       {r.edges:,}: {r.boundary:,} boundary, {r.non_manifold:,} non-manifold, "
+                     f"{r.misoriented:,} misoriented")
+        if r.watertight:
+            lines.append(f"volume      {metrics.signed_volume(d.positions, tri):.6g} (closed, oriented)")
+    return lines
+
+
+def _describe_lattice(path):
+    with open(path, encoding="utf-8") as fh:
+        try:
+            doc = json.load(fh)
+        except json.JSONDecodeError as e:
+            raise ValueError(f"{path}:{e.lineno}: invalid JSON: {e.msg}") from None
+    kind, kw = lattice_json.parse_lattice(doc, path)
+    lines = [f"file        {path}", f"lattice     {kind} {'x'.join(map(str, doc['shape']))}"
+             + (f" ({doc['name']})" if doc.get("name") else "")]
+    if kind == "bspline":
+        cp = kw["control_points"].reshape(-1, 3)
+        lines.append(f"degree      {list(kw['degree'])}, knots {'open uniform' if kw['knots'] is None else 'custom'}")
+        if kw["box_min"] is not None:
+            lines.append(f"box         {kw['box_min'].tolist()} .. {kw['box_max'].tolist()}")
+        lines.append(f"points      {len(cp)}, bbox {cp.min(0).tolist()} .. {cp.max(0).tolist()}")
+    else:
+        disp = np.linalg.norm(kw["points"] - kw["rest_points"], axis=-1)
+        lines.append(f"interp      {list(kw['interpolation'])}, strength {kw['strength']}")
+        lines.append(f"points      {disp.size}, max displacement {disp.max():.4g} (lattice space)")
+    return lines
+
+
+def cmd_info(args, progress):
+    lines = _describe_lattice(args.input) if args.input.lower().endswith(".json") else _describe_obj(args.input)
+    print("\n".join(lines))
+    return 0
+
+
+def build_parser():
+    p = argparse.ArgumentParser(prog="python3 -m smoothffd",
+                                description="Smooth free-form deformation of polygon meshes (Cui & Feng 2015).")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    d = sub.add_parser("deform", help="deform an OBJ mesh with a lattice JSON")
+    d.add_argument("input", metavar="IN.obj")
+    d.add_argument("--lattice", "-l", required=True, metavar="L.json")
+    d.add_argument("--output", "-o", required=True, metavar="OUT.obj")
+    d.add_argument("--level", type=int, default=10, help="tessellation level L (L^2 triangles per patch; default 10)")
+    d.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
+    d.add_argument("--threads", type=int, default=0, help="CPU threads (0: all cores)")
+    d.add_argument("--stats", action="store_true", help="print the result's stats as JSON on stdout")
+    d.add_argument("--quiet", "-q", action="store_true", help="no progress lines")
+    d.set_defaults(func=cmd_deform)
+
+    m = sub.add_parser("make-lattice", help="write an example lattice JSON (identity around a box, then a deformation)")
+    src = m.add_mutually_exclusive_group(required=True)
+    src.add_argument("--bbox-of", metavar="IN.obj", help="use this mesh's bounding box (plus --margin)")
+    src.add_argument("--box", type=float, nargs=6, metavar=("X0", "Y0", "Z0", "X1", "Y1", "Z1"))
+    m.add_argument("--margin", type=float, default=0.05, help="box padding, fraction of the largest extent (default 0.05)")
+    m.add_argument("--shape", type=int, nargs=3, default=[5, 5, 5], metavar=("NU", "NV", "NW"))
+    m.add_argument("--degree", type=int, nargs=3, default=[2, 2, 2], metavar=("DU", "DV", "DW"))
+    m.add_argument("--kind", choices=("bspline", "blender"), default="bspline")
+    m.add_argument("--interpolation", choices=lattice_json.INTERPOLATIONS, default="BSPLINE",
+                   help="Blender lattice interpolation (with --kind blender)")
+    m.add_argument("--axis", choices=("x", "y", "z"), default="z", help="axis of twist/bend/bulge (default z)")
+    how = m.add_mutually_exclusive_group()
+    how.add_argument("--twist", type=float, metavar="DEG", help="twist by DEG degrees end to end")
+    how.add_argument("--bend", type=float, metavar="DEG", help="bend by DEG degrees end to end")
+    how.add_argument("--bulge", type=float, metavar="F", help="scale the middle cross-section by 1 + F")
+    m.add_argument("--output", "-o", required=True, metavar="L.json")
+    m.add_argument("--quiet", "-q", action="store_true")
+    m.set_defaults(func=cmd_make_lattice)
+
+    i = sub.add_parser("info", help="describe an OBJ mesh or a lattice JSON")
+    i.add_argument("input", metavar="FILE")
+    i.set_defaults(func=cmd_info, quiet=True)
+    return p
+
+
+def main(argv=None):
+    """Entry point; returns the exit status (0 ok, 2 bad input)."""
+    args = build_parser().parse_args(argv)
+    progress = _Progress(quiet=getattr(args, "quiet", False))
+    try:
+        return args.func(args, progress)
+    except (UserError,) + _USER_ERRORS as e:
+        progress.abort()
+        msg = " ".join(str(e).split()) or type(e).__name__
+        if isinstance(e, FileNotFoundError) and e.filename:
+            msg = f"{e.filename}: no such file"
+        print(f"smoothffd: error: {msg}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        progress.abort()
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,130 @@
+"""Regenerate the sample data in this folder (no native core needed):
+
+    /usr/bin/python3 python/smoothffd/data/make_sample.py
+
+vase.obj         a closed lathe vase with a wall thickness: 24 segments, quads on the walls and
+                 the rim, two 24-gon bottoms (956 triangles once triangulated). Five smoothing
+                 groups (outer wall, rim, inner wall, outer and inner bottom) give split normals
+                 on the sharp rim and bottom edges; UVs are cylindrical with a seam.
+vase_twist.json  a 4x4x5 quadratic B-spline lattice around it, twisted 60 degrees about z.
+vase_bend.json   the same lattice bent 45 degrees.
+"""
+import importlib
+import pathlib
+import sys
+import types
+
+import numpy as np
+
+HERE = pathlib.Path(__file__).resolve().parent
+SEGMENTS = 24
+HEIGHT = 2.0
+THICKNESS = 0.06
+FLOOR = 0.15  # height of the inside bottom
+
+
+def _smoothffd_module(name):
+    """smoothffd.<name> without the package __init__ (which needs the compiled core)."""
+    if "smoothffd" not in sys.modules:
+        pkg = types.ModuleType("smoothffd")
+        pkg.__path__ = [str(HERE.parent)]
+        sys.modules["smoothffd"] = pkg
+    return importlib.import_module(f"smoothffd.{name}")
+
+
+def outer_radius(z):
+    """Profile: a belly at z ~ 0.6, a neck at z ~ 1.6 and a slightly flared lip."""
+    t = z / HEIGHT
+    return 0.42 + 0.3 * np.sin(np.pi * np.minimum(t / 0.8, 1.0)) ** 1.5 + 0.12 * t ** 6
+
+
+def build():
+    """-> positions (V, 3), corner_vertices (C,), face_offsets (F+1,), corner_normals (C, 3),
+    uvs (C, 2)."""
+    ang = 2 * np.pi * np.arange(SEGMENTS) / SEGMENTS
+    rings = []  # (radius, z) per ring, in order: outer wall bottom->top, inner wall top->floor
+
+    def add_ring(r, z):
+        rings.append((r, z))
+        return len(rings) - 1
+
+    z_out = np.linspace(0.0, HEIGHT, 11)
+    outer = [add_ring(outer_radius(z), z) for z in z_out]
+    z_in = np.linspace(HEIGHT, FLOOR, 9)
+    inner = [add_ring(outer_radius(z) - THICKNESS, z) for z in z_in]
+    pos = np.array([[r * np.cos(a), r * np.sin(a), z] for r, z in rings for a in ang])
+    centre_bottom = len(pos)  # unused by faces; the bottoms are n-gons, not fans
+
+    def vid(ring, j):
+        return ring * SEGMENTS + j % SEGMENTS
+
+    faces, groups, uvs = [], [], []
+    # Profile arclength for the v coordinate of the wall UVs.
+    prof = np.array(rings)
+    arc = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(prof, axis=0), axis=1))])
+    arc /= arc[-1]
+
+    def band(r0, r1, group, flip=False):
+        for j in range(SEGMENTS):
+            quad = [(r0, j), (r0, j + 1), (r1, j + 1), (r1, j)]
+            if flip:
+                quad = quad[::-1]
+            faces.append([vid(r, k) for r, k in quad])
+            # u uses k (not k % SEGMENTS) so the seam corners get u = 1: split UVs.
+            uvs.append([(k / SEGMENTS, arc[r]) for r, k in quad])
+            groups.append(group)
+
+    for a, b in zip(outer[:-1], outer[1:]):
+        band(a, b, "outer")
+    band(outer[-1], inner[0], "rim")
+    for a, b in zip(inner[:-1], inner[1:]):
+        band(a, b, "inner")  # top->floor with the outer-wall winding faces the axis: inward
+
+    def disk(ring, group, up):
+        js = list(range(SEGMENTS)) if up else list(range(SEGMENTS))[::-1]
+        faces.append([vid(ring, j) for j in js])
+        r = rings[ring][0]
+        uvs.append([(0.5 + 0.5 * np.cos(ang[j]) * r / 0.8, 0.5 + 0.5 * np.sin(ang[j]) * r / 0.8) for j in js])
+        groups.append(group)
+
+    disk(outer[0], "bottom", up=False)
+    disk(inner[-1], "floor", up=True)
+    del centre_bottom
+
+    sizes = np.array([len(f) for f in faces])
+    offsets = np.concatenate([[0], np.cumsum(sizes)])
+    cv = np.concatenate(faces)
+    # Per smoothing group: area-weighted vertex normals (Newell face normals are area-scaled).
+    fn = np.array([np.cross(pos[f] - pos[f].mean(0), np.roll(pos[f], -1, 0) - pos[f].mean(0)).sum(0) / 2 for f in faces])
+    corner_normals = np.zeros((len(cv), 3))
+    for g in sorted(set(groups)):
+        acc = np.zeros_like(pos)
+        for fi, f in enumerate(faces):
+            if groups[fi] == g:
+                acc[f] += fn[fi]
+        for fi, f in enumerate(faces):
+            if groups[fi] == g:
+                n = acc[f]
+                corner_normals[offsets[fi]:offsets[fi + 1]] = n / np.linalg.norm(n, axis=1, keepdims=True)
+    return pos, cv, offsets, corner_normals, np.concatenate([np.array(u) for u in uvs])
+
+
+def main():
+    io = _smoothffd_module("io")
+    cli = _smoothffd_module("cli")
+    lattice_json = _smoothffd_module("lattice_json")
+    pos, cv, offsets, normals, uv = build()
+    # round to float32 so the file is compact and reads back bit-exactly
+    io.write_obj(HERE / "vase.obj", pos.astype(np.float32), (cv, offsets), normals.astype(np.float32),
+                 uv.astype(np.float32), header="smoothffd sample: lathe vase with a sharp rim "
+                 "(generated by make_sample.py)")
+    box_min, box_max = cli.padded_box(pos, 0.05)
+    for name, mode, amount in (("vase_twist.json", "twist", 60.0), ("vase_bend.json", "bend", 45.0)):
+        doc = cli.make_lattice_doc(box_min, box_max, (4, 4, 5), (2, 2, 2), "bspline", mode, amount,
+                                   axis=2, name=f"vase {mode} {amount:g} degrees")
+        lattice_json.save_lattice(HERE / name, doc)
+    print(f"wrote {HERE / 'vase.obj'} ({len(pos)} vertices, {len(offsets) - 1} faces) and 2 lattices")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,238 @@
+"""Command line (python3 -m smoothffd ...) and the sample data it ships.
+
+make-lattice, info and the error paths are pure Python; deform needs the native core.
+"""
+import json
+import re
+import os
+import pathlib
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+DATA = ROOT / "python" / "smoothffd" / "data"
+
+
+def _import_pure(name):
+    """Import a pure-Python submodule even when the native core is not built: the package's
+    __init__ needs smoothffd._core, so fall back to a bare package shell around the folder."""
+    import importlib
+    import types
+
+    try:
+        return importlib.import_module(f"smoothffd.{name}")
+    except ImportError:
+        pkg = types.ModuleType("smoothffd")
+        pkg.__path__ = [str(ROOT / "python" / "smoothffd")]
+        sys.modules["smoothffd"] = pkg
+        return importlib.import_module(f"smoothffd.{name}")
+
+
+cli = _import_pure("cli")
+io = _import_pure("io")
+lattice_json = _import_pure("lattice_json")
+metrics = _import_pure("metrics")
+
+
+def run_main(argv, capsys):
+    """main() in-process -> (exit status, stdout, stderr); argparse's SystemExit included."""
+    try:
+        rc = cli.main([str(a) for a in argv])
+    except SystemExit as e:
+        rc = e.code
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+# ---------------------------------------------------------------- example deformations
+
+BOX = (np.array([-1.0, -2.0, 0.0]), np.array([1.0, 2.0, 4.0]))
+
+
+def test_twist_rotates_ends_by_half_the_angle_each():
+    lo, hi = BOX
+    pts = np.array([[1.0, 0, 0], [1.0, 0, 4], [1.0, 0, 2]])
+    out = cli.deform_points(pts, lo, hi, "twist", 90.0, axis=2)
+    np.testing.assert_allclose(out[0], [np.cos(np.pi / 4), -np.sin(np.pi / 4), 0], atol=1e-15)
+    np.testing.assert_allclose(out[1], [np.cos(np.pi / 4), np.sin(np.pi / 4), 4], atol=1e-15)
+    np.testing.assert_allclose(out[2], pts[2], atol=1e-15)  # the middle does not turn
+    # distances from the axis are kept
+    q = np.random.default_rng(0).uniform(lo, hi, size=(20, 3))
+    tq = cli.deform_points(q, lo, hi, "twist", 123.0, axis=2)
+    np.testing.assert_allclose(np.hypot(tq[:, 0], tq[:, 1]), np.hypot(q[:, 0], q[:, 1]))
+    np.testing.assert_array_equal(tq[:, 2], q[:, 2])
+
+
+def test_bend_keeps_centre_and_axis_length_and_turns_the_ends():
+    lo, hi = BOX
+    z = np.linspace(0, 4, 41)
+    axis_pts = np.stack([np.zeros_like(z), np.zeros_like(z), z], 1)
+    out = cli.deform_points(axis_pts, lo, hi, "bend", 60.0, axis=2)
+    np.testing.assert_allclose(out[20], [0, 0, 2], atol=1e-15)
+    seg = np.linalg.norm(np.diff(out, axis=0), axis=1).sum()
+    assert seg == pytest.approx(4.0, rel=1e-3)  # chord sum of a circular arc of length 4
+    # end tangents turned by +-30 degrees, towards +x (the next axis after z)
+    t_end = out[-1] - out[-2]
+    assert np.degrees(np.arctan2(t_end[0], t_end[2])) == pytest.approx(30.0, abs=1.0)
+    assert out[0, 0] > 0 and out[-1, 0] > 0
+    np.testing.assert_array_equal(cli.deform_points(axis_pts, lo, hi, "bend", 0.0), axis_pts)
+
+
+def test_bulge_scales_the_middle_only():
+    lo, hi = BOX
+    pts = np.array([[0.5, 0.5, 0.0], [0.5, 0.5, 2.0], [0.5, 0.5, 4.0]])
+    out = cli.deform_points(pts, lo, hi, "bulge", 0.5, axis=2)
+    np.testing.assert_allclose(out, [[0.5, 0.5, 0], [0.75, 0.75, 2], [0.5, 0.5, 4]])
+
+
+def test_greville_grid_of_linear_lattice_is_uniform():
+    g = cli.greville_grid([0, 0, 0], [1, 2, 3], (3, 4, 2), (1, 1, 1))
+    np.testing.assert_allclose(g[:, 0, 0, 0], [0, 0.5, 1])
+    np.testing.assert_allclose(g[0, :, 0, 1], [0, 2 / 3, 4 / 3, 2])
+    g2 = cli.greville_grid([0, 0, 0], [1, 1, 1], (4, 4, 4), (2, 2, 2))
+    np.testing.assert_allclose(g2[:, 0, 0, 0], [0, 0.25, 0.75, 1])  # knots 0 0 0 .5 1 1 1
+
+
+def test_blender_lattice_doc_identity_points_equal_rest():
+    doc = cli.make_lattice_doc(*BOX, (3, 1, 4), kind="blender")
+    kind, kw = lattice_json.parse_lattice(doc)
+    np.testing.assert_allclose(kw["points"], kw["rest_points"], atol=1e-15)
+    m = kw["lattice_to_object"]
+    corner = m[:3, :3] @ [0.5, 0.5, 0.5] + m[:3, 3]
+    np.testing.assert_allclose(corner, BOX[1])
+
+
+# ---------------------------------------------------------------- make-lattice / info
+
+def test_make_lattice_from_sample_mesh(tmp_path, capsys):
+    out = tmp_path / "l.json"
+    rc, _, err = run_main(["make-lattice", "--bbox-of", DATA / "vase.obj", "--shape", 4, 5, 6,
+                           "--degree", 2, 3, 2, "--bend", 30, "-o", out], capsys)
+    assert rc == 0, err
+    assert "write" in err and str(out) in err
+    kind, kw = lattice_json.parse_lattice(json.loads(out.read_text()))
+    assert kind == "bspline" and kw["control_points"].shape == (4, 5, 6, 3)
+    assert kw["degree"] == (2, 3, 2)
+    v = io.read_obj(DATA / "vase.obj").positions
+    assert (kw["box_min"] < v.min(0)).all() and (kw["box_max"] > v.max(0)).all()
+
+
+def test_info_on_mesh_and_lattice(capsys):
+    rc, out, _ = run_main(["info", DATA / "vase.obj"], capsys)
+    assert rc == 0
+    assert "vertices    480" in out and "956 triangles" in out
+    assert "0 boundary, 0 non-manifold, 0 misoriented" in out and "volume" in out
+    rc, out, _ = run_main(["info", DATA / "vase_twist.json"], capsys)
+    assert rc == 0 and "bspline 4x4x5" in out
+
+
+@pytest.mark.parametrize(
+    "argv, pattern",
+    [
+        (["info", "{tmp}/missing.obj"], "missing.obj: no such file"),
+        (["info", "{tmp}/bad.obj"], r"bad\.obj:3: face needs at least 3 corners"),
+        (["info", "{tmp}/bad.json"], r"bad\.json: key 'version'"),
+        (["make-lattice", "--box", 0, 0, 0, 1, 1, 1, "--shape", 2, 2, 2, "-o", "{tmp}/x.json"],
+         r"key 'shape\[0\]': degree 2 needs at least 3 points"),
+        (["make-lattice", "--box", 0, 0, 0, 1, -1, 1, "-o", "{tmp}/x.json"], "--box"),
+        (["make-lattice", "--bbox-of", "{tmp}/bad.obj", "-o", "{tmp}/x.json"], r"bad\.obj:3"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line(tmp_path, capsys, argv, pattern):
+    (tmp_path / "bad.obj").write_text("v 0 0 0\nv 1 0 0\nf 1 2\n")
+    (tmp_path / "bad.json").write_text('{"format": "smoothffd-lattice", "version": 9}')
+    rc, out, err = run_main([str(a).replace("{tmp}", str(tmp_path)) for a in argv], capsys)
+    assert rc == 2
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("smoothffd: error: ")
+    assert re.search(pattern, last), last
+
+
+def test_usage_errors_exit_2(capsys):
+    rc, _, err = run_main(["make-lattice", "--twist", "10", "--bend", "5", "--box", *[0] * 6, "-o", "x"], capsys)
+    assert rc == 2 and "not allowed with" in err
+    rc, _, _ = run_main(["deform", "x.obj"], capsys)  # --lattice and -o missing
+    assert rc == 2
+
+
+# ---------------------------------------------------------------- deform (needs the core)
+
+@pytest.fixture
+def core():
+    pytest.importorskip("smoothffd._core", reason="native module not built: run scripts/build.sh")
+    import smoothffd
+
+    return smoothffd
+
+
+def test_deform_sample_end_to_end(core, tmp_path, capsys):
+    out = tmp_path / "out.obj"
+    rc, stdout, err = run_main(["deform", DATA / "vase.obj", "--lattice", DATA / "vase_twist.json",
+                                "-o", out, "--level", 3, "--device", "cpu", "--stats"], capsys)
+    assert rc == 0, err
+    for stage in ("read", "plan", "deform", "write"):
+        assert re.search(rf"smoothffd: {stage}\s.*\(\d+\.\d\d s\)", err), err
+    stats = json.loads(stdout)
+    assert stats["level"] == 3 and stats["device"] == "cpu"
+    d = io.read_obj(out)
+    tri = d.corner_vertices.reshape(-1, 3)
+    assert len(tri) == stats["output_triangles"]
+    assert metrics.is_watertight(tri)
+    assert d.corner_normals is not None and d.uvs is not None
+    # the first V output vertices are the deformed input vertices: exact FFD at the vertices
+    src = io.read_obj(DATA / "vase.obj")
+    lat = lattice_json.load_lattice(DATA / "vase_twist.json")
+    want = lat.evaluate(src.positions)[0]
+    assert metrics.geometry_error(d.positions[: len(want)], want).max < 1e-5
+
+
+def test_deform_with_identity_lattice_keeps_vertices(core, tmp_path, capsys):
+    lat = tmp_path / "id.json"
+    assert run_main(["make-lattice", "--bbox-of", DATA / "vase.obj", "-o", lat, "-q"], capsys)[0] == 0
+    # cross-check the pure-Python Greville grid against the core's identity lattice
+    doc = json.loads(lat.read_text())
+    ident = core.BSplineLattice.identity(doc["box_min"], doc["box_max"], shape=doc["shape"])
+    np.testing.assert_allclose(np.reshape(doc["control_points"], (5, 5, 5, 3)), ident.control_points, atol=1e-14)
+    out = tmp_path / "o.obj"
+    rc, _, err = run_main(["deform", DATA / "vase.obj", "--lattice", lat, "-o", out, "--level", 2, "-q"], capsys)
+    assert rc == 0 and err == ""
+    src = io.read_obj(DATA / "vase.obj").positions
+    np.testing.assert_allclose(io.read_obj(out).positions[: len(src)], src, atol=1e-6)
+
+
+def test_deform_bad_inputs_exit_2(core, tmp_path, capsys):
+    rc, _, err = run_main(["deform", DATA / "vase.obj", "--lattice", tmp_path / "none.json", "-o", tmp_path / "o.obj"], capsys)
+    assert rc == 2 and "none.json: no such file" in err
+    rc, _, err = run_main(["deform", DATA / "vase.obj", "--lattice", DATA / "vase_twist.json",
+                           "-o", tmp_path / "o.obj", "--level", 0], capsys)
+    assert rc == 2 and "level" in err.splitlines()[-1]
+    assert len(err.strip().splitlines()[-1].split("\n")) == 1
+
+
+def test_python_dash_m_runs(core, tmp_path):
+    out = tmp_path / "bend.obj"
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "python"))
+    r = subprocess.run([sys.executable, "-m", "smoothffd", "deform", str(DATA / "vase.obj"), "--lattice",
+                        str(DATA / "vase_bend.json"), "-o", str(out), "--level", "2"], env=env,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert out.stat().st_size > 0
+    r = subprocess.run([sys.executable, "-m", "smoothffd", "info", str(tmp_path / "nope.obj")], env=env,
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1
+
+
+def test_sample_data_is_small_and_sharp():
+    for f in DATA.iterdir():
+        assert f.stat().st_size < 200_000, f
+    d = io.read_obj(DATA / "vase.obj")
+    tri_count = int((np.diff(d.face_offsets) - 2).sum())
+    assert 500 <= tri_count <= 1000
+    # split normals: some vertex carries corners with different normals (the sharp rim)
+    cv, n = d.corner_vertices, d.corner_normals
+    order = np.lexsort((n[:, 2], n[:, 1], n[:, 0], cv))
+    diff = (np.diff(cv[order]) == 0) & (np.abs(np.diff(n[order], axis=0)).max(1) > 0.5)
+    assert diff.any()

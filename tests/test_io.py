@@ -264,3 +264,29 @@ def test_read_obj_mesh_builds_core_mesh(tmp_path):
 
     mesh = io.read_obj_mesh(write_text(tmp_path, CUBE_QUADS))
     assert isinstance(mesh, smoothffd.Mesh)
+
+
+@pytest.mark.parametrize("layout", ["v", "v/t", "v//n", "v/t/n"])
+def test_fast_path_matches_slow_path_on_random_polygon_files(tmp_path, layout):
+    rng = np.random.default_rng(len(layout))
+    V, F = 40, 60
+    sizes = rng.integers(3, 8, size=F)
+    lines = [f"v {x:.6g} {y:.6g} {z:.6g}" for x, y, z in rng.normal(size=(V, 3))]
+    lines += [f"vt {u:.6g} {v:.6g}" for u, v in rng.random(size=(30, 2))]
+    lines += [f"vn {x:.6g} {y:.6g} {z:.6g}" for x, y, z in rng.normal(size=(25, 3))]
+    for n in sizes:
+        corners = []
+        for _ in range(n):
+            v, t, k = rng.integers(1, V + 1), rng.integers(1, 31), rng.integers(1, 26)
+            corners.append(layout.replace("v", str(v), 1).replace("t", str(t)).replace("n", str(k)))
+        lines.append("f " + " ".join(corners))
+    text = "\n".join(lines) + "\n"
+    fast = io._read_fast(text, "x.obj")
+    slow = io._read_slow(text, "x.obj")
+    assert fast is not None
+    for a, b in zip(fast, slow):
+        if a is None or b is None:
+            assert a is None and b is None
+        else:
+            np.testing.assert_array_equal(a, b)
+    assert fast.face_offsets[-1] == sizes.sum()

@@ -171,6 +171,12 @@ def make_lattice_doc(box_min, box_max, shape, degree=(2, 2, 2), kind="bspline", 
 # commands
 
 
+def _ensure_parent(path):
+    """Create the output's folder, so `-o out/x.obj` works on a fresh checkout."""
+    parent = os.path.dirname(os.path.abspath(path))
+    os.makedirs(parent, exist_ok=True)
+
+
 def cmd_deform(args, progress):
     import smoothffd  # the core: only this command needs it
 
@@ -187,6 +193,7 @@ def cmd_deform(args, progress):
         res = deformer.deform()
         note["detail"] = f"{len(res.triangles):,} triangles, {len(res.positions):,} vertices"
     with progress.stage("write") as note:
+        _ensure_parent(args.output)
         objio.write_obj(args.output, res.positions, res.triangles, res.corner_normals, res.uvs,
                         header=f"smoothffd deform {os.path.basename(args.input)} "
                                f"--lattice {os.path.basename(args.lattice)} --level {args.level}")
@@ -219,6 +226,7 @@ def cmd_make_lattice(args, progress):
                            mode, amount, "xyz".index(args.axis), args.interpolation,
                            name=f"{mode or 'identity'} {amount:g}" if mode else "identity")
     with progress.stage("write") as note:
+        _ensure_parent(args.output)
         lattice_json.save_lattice(args.output, doc)
         note["detail"] = f"{args.output}: {doc['kind']} {'x'.join(map(str, args.shape))}, {doc['name']}"
     return 0

@@ -140,7 +140,8 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
             st.plan_key = plan_key
         res = st.deformer.deform(lattice)
         t1 = time.perf_counter()
-        normals = _write_result(obj, ro.data, res, source, logic.digest(plan_key), exact)
+        times = _write_result(obj, ro.data, res, source, logic.digest(plan_key), exact)
+        normals = times.pop("normals")
         t2 = time.perf_counter()
         st.last_key = key
         used = res.stats.get("device", backend) if isinstance(res.stats, dict) else backend
@@ -149,7 +150,7 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
                              f" ({normals} normals)", True)
         _last_timing[(obj.name_full, mod.name)] = {
             "deform_ms": 1e3 * (t1 - t0), "write_ms": 1e3 * (t2 - t1), "normals": normals,
-            "level": level, "triangles": len(res.triangles), "stats": res.stats}
+            "level": level, "triangles": len(res.triangles), "stats": res.stats, **times}
         return True
     except logic.SmoothFFDError as e:
         _fail(obj, mod, st, str(e))
@@ -184,19 +185,26 @@ def _materials(obj):
 
 
 def _write_result(obj, mesh, res, source, topology_token, exact):
+    """Writes res into the result mesh; returns timings (ms) and the normals path used."""
+    t0 = time.perf_counter()
     mode = "exact" if exact else "fast"
     same = (mesh.get(TOPOLOGY_KEY) == topology_token and len(mesh.vertices) == len(res.positions)
             and len(mesh.polygons) == len(res.triangles))
     # Going back from exact to fast on 3.4-4.0 needs the custom-normal layer gone: rebuild.
-    if not same or (mesh.get(NORMALS_KEY) == "exact" and mode == "fast"):
+    rebuild = not same or (mesh.get(NORMALS_KEY) == "exact" and mode == "fast")
+    if rebuild:
         meshio.write_topology(mesh, res, source, _materials(obj))
         mesh[TOPOLOGY_KEY] = topology_token
     else:
         meshio.write_positions(mesh, res)
+    t1 = time.perf_counter()
     if exact:
         path = meshio.write_normals(mesh, res)
     else:
         path = "from geometry"   # 3.4-4.0 viewport: Blender's own normals of the dense mesh
     mesh[NORMALS_KEY] = mode
+    t2 = time.perf_counter()
     mesh.update()
-    return path
+    t3 = time.perf_counter()
+    return {"normals": path, "rebuilt": rebuild, "mesh_write_ms": 1e3 * (t1 - t0),
+            "normals_ms": 1e3 * (t2 - t1), "tag_ms": 1e3 * (t3 - t2)}

@@ -97,26 +97,19 @@ SFFD_HD void adjust_edge(const PlanView& pv, const FrameView& fv, int e) {
 // of the six edge control points: PN triangles' b111 = E + (E - V)/2 written as an update, so
 // a rest-pose patch with exact normals reproduces the PN centre (a rest-pose icosphere comes
 // out far closer to its sphere than with the fitted centre; see tests/test_sphere.py).
-SFFD_HD void fit_patch(const PlanView& pv, const FrameView& fv, int p) {
-  const int K = pv.columns;
-  const int* cols = pv.patch_samples + (long long)p * K;
-  V3 rn[3];
-  for (int k = 0; k < 3; ++k) rn[k] = load3(pv.patch_render_normal + 9 * (long long)p + 3 * k);
-  V3 g[10], nn[10];
-  for (int r = 0; r < 10; ++r) g[r] = nn[r] = v3(0, 0, 0);
-  for (int k = 0; k < K; ++k) {
-    int s = cols[k];
-    V3 x = load3(fv.sample_value + 3 * (long long)s);
-    const float* b = pv.column_bary + 3 * k;
-    V3 n0 = b[0] * rn[0] + b[1] * rn[1] + b[2] * rn[2];
-    V3 n = normalized_or(cofactor_apply(fv.sample_jacobian + 9 * (long long)s, n0), n0);
-    n = normalized_or(n, rn[0]);
-    for (int r = 0; r < 10; ++r) {
-      float m = pv.fit_matrix[r * K + k];
-      g[r] += m * x;
-      nn[r] += m * n;
-    }
-  }
+// One column k of patch p: the deformed sample x and its deformed, interpolated render normal n.
+SFFD_HD void fit_column(const PlanView& pv, const FrameView& fv, int p, int k, const V3 rn[3], V3& x, V3& n) {
+  int s = pv.patch_samples[(long long)p * pv.columns + k];
+  x = load3(fv.sample_value + 3 * (long long)s);
+  const float* b = pv.column_bary + 3 * k;
+  V3 n0 = b[0] * rn[0] + b[1] * rn[1] + b[2] * rn[2];
+  n = normalized_or(cofactor_apply(fv.sample_jacobian + 9 * (long long)s, n0), n0);
+  n = normalized_or(n, rn[0]);
+}
+
+// Replaces the corners and edge control points of fitted geometry patch g with the exact
+// corners and the adjusted edge control points, and moves the centre with them.
+SFFD_HD void finish_patch(const PlanView& pv, const FrameView& fv, int p, V3 g[10]) {
   V3 fitted_mean = v3(0, 0, 0), adjusted_mean = v3(0, 0, 0);
   for (int k = 0; k < 3; ++k) {
     g[k] = load3(fv.sample_value + 3 * (long long)pv.patch_vertex[3 * p + k]);  // exact corners
@@ -130,12 +123,46 @@ SFFD_HD void fit_patch(const PlanView& pv, const FrameView& fv, int p) {
     adjusted_mean += g[i0] + g[i1];
   }
   g[kCentre] += 0.25f * (adjusted_mean - fitted_mean);  // 3/2 * (mean of 6 differences)
-  float* out_g = fv.patch_control + 30 * (long long)p;
-  float* out_n = fv.patch_normal + 30 * (long long)p;
+}
+
+// fit_patch writing the 10 + 10 control points to out_g and out_n (30 floats each).
+SFFD_HD void fit_patch_into(const PlanView& pv, const FrameView& fv, int p, float* out_g, float* out_n) {
+  const int K = pv.columns;
+  V3 rn[3];
+  for (int k = 0; k < 3; ++k) rn[k] = load3(pv.patch_render_normal + 9 * (long long)p + 3 * k);
+  V3 g[10], nn[10];
+  for (int r = 0; r < 10; ++r) g[r] = nn[r] = v3(0, 0, 0);
+  for (int k = 0; k < K; ++k) {
+    V3 x, n;
+    fit_column(pv, fv, p, k, rn, x, n);
+    for (int r = 0; r < 10; ++r) {
+      float m = pv.fit_matrix[r * K + k];
+      g[r] += m * x;
+      nn[r] += m * n;
+    }
+  }
+  finish_patch(pv, fv, p, g);
   for (int r = 0; r < 10; ++r) {
     store3(out_g + 3 * r, g[r]);
     store3(out_n + 3 * r, nn[r]);
   }
+}
+
+SFFD_HD void fit_patch(const PlanView& pv, const FrameView& fv, int p) {
+  fit_patch_into(pv, fv, p, fv.patch_control + 30 * (long long)p, fv.patch_normal + 30 * (long long)p);
+}
+
+// Cubic patch with control points cp (10 x 3) at the grid point with basis B (10 values).
+SFFD_HD V3 eval_cubic(const float* B, const float* cp) {
+  V3 x = v3(0, 0, 0);
+  for (int k = 0; k < 10; ++k) x += B[k] * load3(cp + 3 * k);
+  return x;
+}
+
+// Unit normal from the normal patch value n (fallback: the mean of the corner normals).
+SFFD_HD V3 unit_patch_normal(V3 n, const float* cp) {
+  V3 fallback = normalized_or(load3(cp) + load3(cp + 3) + load3(cp + 6), v3(0, 0, 1));
+  return normalized_or(n, fallback);
 }
 
 // 4a. Output vertex o: input and clip vertices are the deformed samples themselves; edge and
@@ -147,22 +174,15 @@ SFFD_HD void tessellate_position(const PlanView& pv, const FrameView& fv, int o)
   } else {
     long long i = o - pv.sub_vertices;
     int p = pv.output_owner[2 * i], g = pv.output_owner[2 * i + 1];
-    const float* B = pv.grid_basis + 10 * g;
-    const float* cp = fv.patch_control + 30 * (long long)p;
-    x = v3(0, 0, 0);
-    for (int k = 0; k < 10; ++k) x += B[k] * load3(cp + 3 * k);
+    x = eval_cubic(pv.grid_basis + 10 * g, fv.patch_control + 30 * (long long)p);
   }
   store3(fv.positions + 3 * (long long)o, x);
 }
 
 // 4b. Unit normal of patch p at grid point g.
 SFFD_HD V3 tessellate_normal(const PlanView& pv, const FrameView& fv, int p, int g) {
-  const float* B = pv.grid_basis + 10 * g;
   const float* cp = fv.patch_normal + 30 * (long long)p;
-  V3 n = v3(0, 0, 0);
-  for (int k = 0; k < 10; ++k) n += B[k] * load3(cp + 3 * k);
-  V3 fallback = normalized_or(load3(cp) + load3(cp + 3) + load3(cp + 6), v3(0, 0, 1));
-  return normalized_or(n, fallback);
+  return unit_patch_normal(eval_cubic(pv.grid_basis + 10 * g, cp), cp);
 }
 
 }  // namespace sffd

@@ -1,0 +1,104 @@
+// CUDA evaluator: the plan is uploaded once, each frame uploads only the control values D.
+// The per-element stages are the SFFD_HD functions of eval/stages.hpp, called from kernels.
+//
+// Two paths for the fitting and tessellation products (selected by `path`, or the environment
+// variable SMOOTHFFD_CUDA_PATH = "fused" | "cublas"):
+//   cublas: the paper's formulation. Gather the deformed samples and normals of every patch
+//           into a matrix X (K x 6P), one SGEMM M_r (10 x K) X (Eq. 13), a finishing kernel
+//           (exact corners, adjusted edges, centre), one SGEMM B_q (G x 10) C (10 x 6P)
+//           (Eq. 14), then a kernel that scatters the welded positions and normalizes normals.
+//   fused:  sampling, edge adjustment, then one kernel that fits a block of patches into
+//           shared memory and tessellates them straight from there (no intermediate matrices).
+//
+// Device-resident output of a frame (compact): positions, N x 3 (welded output vertices), and
+// normals per (patch, grid point), P x G x 3. Per-corner normals (T x 3 x 3) are only built,
+// on the device, when copying back to the host.
+//
+// Errors (no device, launch failures, out of memory) throw CudaError (std::runtime_error) or
+// CudaOutOfMemory (std::bad_alloc): never an abort.
+#pragma once
+
+#include <memory>
+#include <new>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "smoothffd/eval/evaluator.hpp"
+
+namespace sffd {
+
+// (usable, message): whether a CUDA device can run the CUDA evaluator, and why not.
+std::pair<bool, std::string> cuda_status();
+
+class CudaError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class CudaOutOfMemory : public std::bad_alloc {
+ public:
+  explicit CudaOutOfMemory(std::string msg) : msg_(std::move(msg)) {}
+  const char* what() const noexcept override { return msg_.c_str(); }
+
+ private:
+  std::string msg_;
+};
+
+class CudaEvaluator : public Evaluator {
+ public:
+  // path: "fused", "cublas", or "" (SMOOTHFFD_CUDA_PATH, else the default, fused).
+  explicit CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string& path = "");
+  ~CudaEvaluator() override;
+  std::string name() const override { return "cuda"; }
+  const Plan& plan() const override { return *plan_; }
+
+  // Whole frame: D up, device stages, per-corner expansion, copy back through pinned memory.
+  StageTimes evaluate(const float* D, float* positions, float* corner_normals) override;
+  // Device stages only; the result stays on the device. Times from CUDA events.
+  StageTimes evaluate_device(const float* D);
+
+  std::string path() const;
+  void set_path(const std::string& path);
+  // Bytes of the compact device output of one frame (positions + per-(patch, grid) normals).
+  size_t output_bytes() const;
+  size_t device_bytes() const;  // device memory held
+  // Fills the device outputs and intermediates with NaN (tests: every element must be written).
+  void poison();
+  // Copies of the compact device output: positions (N x 3), grid normals (P x G x 3).
+  void download_compact(float* positions, float* grid_normals);
+
+  // Timing on the device (median of `iters` frames with CUDA events per stage; the whole
+  // frame also as a replayed CUDA graph; the device-to-device copy floor on this run).
+  StageTimes benchmark(const float* D, int iters);
+
+ private:
+  struct Impl;
+  std::shared_ptr<const Plan> plan_;
+  std::unique_ptr<Impl> impl_;
+};
+
+// The paper's uniform upsampling baseline (sec. 6.4): every point of an upsampled rest mesh
+// (PN triangles at a finer level, built by the caller) is deformed by the lattice of `plan`,
+// its normal by the cofactor of the Jacobian. points: M x 3 rest points, normals: M x 3 unit
+// rest normals, pieces: M packed piece indices (10 bits an axis, as Plan::sample_piece).
+class CudaUpsamplingBaseline {
+ public:
+  CudaUpsamplingBaseline(std::shared_ptr<const Plan> plan, const std::vector<float>& points,
+                         const std::vector<float>& normals, const std::vector<uint32_t>& pieces);
+  ~CudaUpsamplingBaseline();
+  int points() const { return count_; }
+  size_t output_bytes() const { return 24 * (size_t)count_; }
+  // Positions and normals (M x 3 each) to host memory.
+  void evaluate(const float* D, float* positions, float* normals);
+  StageTimes benchmark(const float* D, int iters);
+
+ private:
+  struct Impl;
+  std::shared_ptr<const Plan> plan_;
+  int count_ = 0;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace sffd

@@ -1,0 +1,307 @@
+"""CUDA evaluator vs the CPU evaluator on the same plan (issue 3).
+
+Positions must agree to 1e-5 of the lattice size and normals to 1e-4 rad, for random
+lattices of several degrees, both lattice kinds, levels 1..16, meshes with sharp and smooth
+edges and knot-box clipping, on both product paths (fused and cuBLAS). Device buffers are
+poisoned with NaN before every run and every output element must come back finite.
+
+Skipped (with the reason) where no usable CUDA device exists.
+"""
+
+import os
+
+import numpy as np
+import pytest
+
+import smoothffd
+from smoothffd import _core
+
+_USABLE, _WHY = smoothffd.cuda_status()
+pytestmark = pytest.mark.skipif(not _USABLE, reason=f"no usable CUDA device: {_WHY}")
+
+PATHS = ("fused", "cublas")
+
+
+# ----------------------------------------------------------------------------- meshes (numpy)
+
+def icosphere(subdivisions=2, radius=1.0):
+    t = (1 + 5 ** 0.5) / 2
+    V = [[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t], [0, -1, -t],
+         [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]]
+    F = [[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
+         [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
+         [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]]
+    V = [np.array(v, float) / np.linalg.norm(v) for v in V]
+    for _ in range(subdivisions):
+        cache, out = {}, []
+
+        def mid(a, b):
+            key = (min(a, b), max(a, b))
+            if key not in cache:
+                m = V[a] + V[b]
+                V.append(m / np.linalg.norm(m))
+                cache[key] = len(V) - 1
+            return cache[key]
+
+        for a, b, c in F:
+            ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
+            out += [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
+        F = out
+    V = np.array(V) * radius
+    F = np.array(F, dtype=np.int64)
+    return smoothffd.Mesh(V, F, corner_normals=(V / radius)[F.reshape(-1)])
+
+
+def cube(size=0.8, sharp=True, cuts=2):
+    """Cube of (cuts x cuts) quads a side; sharp: split normals (flat per face)."""
+    s = np.linspace(-size, size, cuts + 1)
+    verts, index, faces, normals = [], {}, [], []
+
+    def vid(p):
+        key = tuple(np.round(p, 9))
+        if key not in index:
+            index[key] = len(verts)
+            verts.append(p)
+        return index[key]
+
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            u, v = (axis + 1) % 3, (axis + 2) % 3
+            n = np.zeros(3)
+            n[axis] = sign
+            for i in range(cuts):
+                for j in range(cuts):
+                    quad = []
+                    for di, dj in ((0, 0), (1, 0), (1, 1), (0, 1)):
+                        p = np.zeros(3)
+                        p[axis] = sign * size
+                        p[u], p[v] = s[i + di], s[j + dj]
+                        quad.append(vid(p))
+                    if sign < 0:
+                        quad = quad[::-1]
+                    faces.append(quad)
+                    normals += [n] * 4
+    cv = np.array(faces).reshape(-1)
+    fo = np.arange(0, len(cv) + 1, 4)
+    V = np.array(verts)
+    if sharp:
+        return smoothffd.Mesh(V, (cv, fo), corner_normals=np.array(normals))
+    return smoothffd.Mesh(V, (cv, fo))
+
+
+MESHES = {"sphere": lambda: icosphere(2), "cube_sharp": lambda: cube(sharp=True),
+          "cube_smooth": lambda: cube(sharp=False, cuts=3)}
+
+
+# ----------------------------------------------------------------------------- lattices
+
+BOX = (np.array([-1.15, -1.1, -1.2]), np.array([1.2, 1.1, 1.05]))
+SIZE = float(np.linalg.norm(BOX[1] - BOX[0]))
+
+
+def bspline(rng, degree=(2, 2, 2), shape=(5, 5, 5), amount=0.08, box=BOX):
+    lat = smoothffd.BSplineLattice.identity(box[0], box[1], shape=shape, degree=degree)
+    cp = lat.rest_points + amount * SIZE * rng.standard_normal(lat.rest_points.shape)
+    return lat.with_control_points(cp)
+
+
+def blender(rng, interp=("BSPLINE",) * 3, shape=(4, 5, 3), amount=0.08):
+    axes = [np.linspace(BOX[0][a], BOX[1][a], shape[a]) for a in range(3)]
+    rest = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+    pts = rest + amount * SIZE * rng.standard_normal(rest.shape)
+    return smoothffd.BlenderLattice(rest, pts, interpolation=interp)
+
+
+# ----------------------------------------------------------------------------- comparison
+
+def angles(a, b):
+    c = np.linalg.norm(np.cross(a, b), axis=-1)
+    d = np.sum(a * b, axis=-1)
+    return np.arctan2(c, d)
+
+
+def check(mesh, lat, level, path):
+    plan = smoothffd.Deformer(mesh, lat, level=level, device="cpu").plan
+    vals = np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32)
+    pc, nc, _ = _core.CpuEvaluator(plan).evaluate(vals)
+    ev = _core.CudaEvaluator(plan, path)
+    assert ev.path == path
+    ev.poison()
+    pg, ng, times = ev.evaluate(vals)
+    assert pg.shape == pc.shape and ng.shape == nc.shape
+    assert np.isfinite(pg).all(), f"{np.count_nonzero(~np.isfinite(pg))} positions not written"
+    assert np.isfinite(ng).all(), f"{np.count_nonzero(~np.isfinite(ng))} normals not written"
+    dp = np.abs(pg.astype(np.float64) - pc).max() / SIZE
+    da = angles(ng.astype(np.float64), nc.astype(np.float64)).max()
+    assert dp <= 1e-5, f"positions differ by {dp:.2e} of the lattice size"
+    assert da <= 1e-4, f"normals differ by {da:.2e} rad"
+    assert times["device_total"] >= 0 and "copy_back" in times
+    # The device-resident compact output agrees with what came back.
+    ev.poison()
+    t = ev.evaluate_device(vals)
+    assert t["device_total"] > 0
+    pos, gn = ev.download_compact()
+    assert np.isfinite(pos).all() and np.isfinite(gn).all()
+    np.testing.assert_array_equal(pos, pg)
+    assert gn.shape == (plan.patches, (level + 1) * (level + 2) // 2, 3)
+    return dp, da
+
+
+@pytest.mark.parametrize("path", PATHS)
+@pytest.mark.parametrize("mesh", sorted(MESHES))
+@pytest.mark.parametrize("degree", [(1, 1, 1), (2, 2, 2), (3, 3, 3), (1, 2, 3), (3, 1, 2)])
+def test_bspline_degrees(mesh, degree, path):
+    rng = np.random.default_rng(hash((mesh, degree)) % 2**32)
+    check(MESHES[mesh](), bspline(rng, degree), level=5, path=path)
+
+
+@pytest.mark.parametrize("path", PATHS)
+@pytest.mark.parametrize("mesh", sorted(MESHES))
+@pytest.mark.parametrize("interp", [("BSPLINE",) * 3, ("LINEAR",) * 3, ("CATMULL_ROM", "CARDINAL", "BSPLINE"),
+                                    ("LINEAR", "BSPLINE", "CATMULL_ROM")])
+def test_blender_lattices(mesh, interp, path):
+    rng = np.random.default_rng(7 + len(mesh) + len(interp[0]))
+    check(MESHES[mesh](), blender(rng, interp), level=4, path=path)
+
+
+@pytest.mark.parametrize("path", PATHS)
+@pytest.mark.parametrize("level", range(1, 17))
+def test_levels(level, path):
+    rng = np.random.default_rng(level)
+    check(icosphere(1), bspline(rng), level=level, path=path)
+    check(cube(sharp=True, cuts=1), bspline(rng, degree=(2, 3, 2)), level=level, path=path)
+
+
+@pytest.mark.parametrize("path", PATHS)
+def test_partly_outside_box(path):
+    """The sphere sticks out of the lattice box: clipping at the box faces too."""
+    rng = np.random.default_rng(3)
+    box = (np.array([-0.7, -0.8, -0.6]), np.array([0.9, 0.75, 0.8]))
+    check(icosphere(2), bspline(rng, box=box), level=6, path=path)
+
+
+def test_identity_lattice_flat_cube():
+    """Identity lattice: the output lies on the cube faces, normals are the face normals."""
+    mesh = cube(sharp=True)
+    lat = smoothffd.BSplineLattice.identity(BOX[0], BOX[1])
+    d = smoothffd.Deformer(mesh, lat, level=6, device="cuda")
+    r = d.deform()
+    assert r.stats["device"] == "cuda"
+    assert np.allclose(np.abs(r.positions).max(axis=1), 0.8, atol=1e-5)
+
+
+def test_deformer_cuda_matches_cpu():
+    rng = np.random.default_rng(11)
+    mesh, lat = icosphere(2), bspline(rng)
+    rg = smoothffd.Deformer(mesh, lat, level=7, device="cuda").deform()
+    rc = smoothffd.Deformer(mesh, lat, level=7, device="cpu").deform()
+    assert rg.stats["device"] == "cuda"
+    np.testing.assert_array_equal(rg.triangles, rc.triangles)
+    assert np.abs(rg.positions - rc.positions).max() <= 1e-5 * SIZE
+    assert angles(rg.corner_normals, rc.corner_normals).max() <= 1e-4
+    auto = smoothffd.Deformer(mesh, lat, level=3, device="auto")
+    assert auto.device == "cuda"
+
+
+def test_repeated_frames_and_path_switch():
+    rng = np.random.default_rng(5)
+    mesh = icosphere(2)
+    lat = bspline(rng)
+    plan = smoothffd.Deformer(mesh, lat, level=5, device="cpu").plan
+    ev = _core.CudaEvaluator(plan, "fused")
+    cpu = _core.CpuEvaluator(plan)
+    for i in range(4):
+        lat = bspline(rng)
+        vals = np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32)
+        ev.path = PATHS[i % 2]
+        pg, ng, _ = ev.evaluate(vals)
+        pc, nc, _ = cpu.evaluate(vals)
+        assert np.abs(pg - pc).max() <= 1e-5 * SIZE
+        assert angles(ng, nc).max() <= 1e-4
+
+
+def test_env_path(monkeypatch):
+    rng = np.random.default_rng(1)
+    plan = smoothffd.Deformer(icosphere(1), bspline(rng), level=2, device="cpu").plan
+    monkeypatch.setenv("SMOOTHFFD_CUDA_PATH", "cublas")
+    assert _core.CudaEvaluator(plan).path == "cublas"
+    monkeypatch.setenv("SMOOTHFFD_CUDA_PATH", "fused")
+    assert _core.CudaEvaluator(plan).path == "fused"
+    with pytest.raises(ValueError, match="path"):
+        _core.CudaEvaluator(plan, "tensor-cores")
+
+
+def test_bad_values():
+    rng = np.random.default_rng(2)
+    plan = smoothffd.Deformer(icosphere(1), bspline(rng), level=2, device="cpu").plan
+    ev = _core.CudaEvaluator(plan)
+    with pytest.raises(ValueError, match="control values"):
+        ev.evaluate(np.zeros((7, 3), np.float32))
+    with pytest.raises(ValueError, match="control values"):
+        ev.evaluate_device(np.zeros((7, 3), np.float32))
+
+
+def test_out_of_memory_is_memory_error():
+    """With the card nearly full, building an evaluator raises MemoryError (no crash), and
+    the module works again once memory is free."""
+    torch = pytest.importorskip("torch")
+    rng = np.random.default_rng(4)
+    lat = bspline(rng)
+    plan = smoothffd.Deformer(icosphere(5), lat, level=16, device="cpu").plan
+    free, _ = torch.cuda.mem_get_info()
+    hog = torch.empty(free - (48 << 20), dtype=torch.uint8, device="cuda")
+    try:
+        with pytest.raises(MemoryError, match="out of GPU memory"):
+            _core.CudaEvaluator(plan)
+    finally:
+        del hog
+        torch.cuda.empty_cache()
+    small = smoothffd.Deformer(icosphere(1), lat, level=2, device="cpu").plan
+    vals = np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32)
+    pg, _, _ = _core.CudaEvaluator(small).evaluate(vals)
+    assert np.isfinite(pg).all()
+
+
+def upsampled_points(mesh, lat, level):
+    """Flat tessellation points of a plan (rest positions) with their planes' pieces."""
+    plan = smoothffd.Deformer(mesh, lat, level=level, device="cpu").plan
+    pts = plan.rest_positions().astype(np.float64)
+    return pts, plan
+
+
+def pieces_of(lat, pts):
+    s = pts @ lat.object_to_param[:, :3].T + lat.object_to_param[:, 3]
+    planes = lat.knot_planes()
+    packed = np.zeros(len(pts), np.uint32)
+    for a in range(3):
+        idx = np.searchsorted(planes[a], s[:, a], side="right")
+        packed |= idx.astype(np.uint32) << np.uint32(10 * a)
+    return packed
+
+
+def test_upsampling_baseline_matches_lattice():
+    rng = np.random.default_rng(9)
+    mesh, lat = icosphere(2), bspline(rng)
+    pts, plan = upsampled_points(mesh, lat, 6)
+    nrm = pts / np.linalg.norm(pts, axis=1, keepdims=True)
+    base = _core.CudaUpsamplingBaseline(plan, pts.astype(np.float32), nrm.astype(np.float32),
+                                        pieces_of(lat, pts))
+    vals = np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32)
+    pos, n = base.evaluate(vals)
+    F, J = lat.evaluate(pts.astype(np.float32).astype(np.float64))
+    assert np.abs(pos - F).max() <= 1e-5 * SIZE
+    cof = np.linalg.det(J)[:, None, None] * np.linalg.inv(J).transpose(0, 2, 1)
+    ref = np.einsum("nij,nj->ni", cof, nrm)
+    ref /= np.linalg.norm(ref, axis=1, keepdims=True)
+    assert angles(n, ref).max() <= 1e-4
+    t = base.benchmark(vals, 5)
+    assert t["deform_samples"] > 0
+
+
+@pytest.mark.skipif(os.environ.get("SMOOTHFFD_SANITIZER") != "1", reason="run under compute-sanitizer only")
+def test_sanitizer_subset():
+    """Small mixed workload for compute-sanitizer (both paths, copy back, baseline)."""
+    rng = np.random.default_rng(0)
+    for path in PATHS:
+        check(cube(sharp=True), bspline(rng, degree=(1, 2, 3)), level=3, path=path)
+        check(icosphere(1), blender(rng, ("CATMULL_ROM", "LINEAR", "BSPLINE")), level=4, path=path)

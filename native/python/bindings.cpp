@@ -190,6 +190,79 @@ PYBIND11_MODULE(_core, m) {
   m.attr("cuda_compiled") = true;
   m.def("cuda_status", []() { return cuda_status(); },
         "(usable, message): whether a CUDA device can run the CUDA evaluator, and why not");
+  // CUDA errors arrive as CudaError (RuntimeError) or CudaOutOfMemory (MemoryError).
+  py::class_<CudaEvaluator, std::shared_ptr<CudaEvaluator>>(m, "CudaEvaluator")
+      .def(py::init([](std::shared_ptr<Plan> plan, const std::string& path) {
+             return std::make_shared<CudaEvaluator>(plan, path);
+           }),
+           py::arg("plan"), py::arg("path") = "", py::keep_alive<1, 2>())
+      .def_property("path", &CudaEvaluator::path, &CudaEvaluator::set_path,
+                    "'fused' or 'cublas' (default: $SMOOTHFFD_CUDA_PATH, else fused)")
+      .def_property_readonly("output_bytes", &CudaEvaluator::output_bytes)
+      .def_property_readonly("device_bytes", &CudaEvaluator::device_bytes)
+      .def("evaluate", [](CudaEvaluator& ev, Arr<float> D) { return run_evaluator(ev, D); },
+           py::arg("values"))
+      .def("evaluate_device",
+           [](CudaEvaluator& ev, Arr<float> D) {
+             const Plan& plan = ev.plan();
+             if ((size_t)D.size() != 3 * (size_t)plan.dims[0] * plan.dims[1] * plan.dims[2])
+               throw std::invalid_argument("control values: expected an (nu*nv*nw, 3) array matching the plan");
+             StageTimes t;
+             {
+               py::gil_scoped_release release;
+               t = ev.evaluate_device(D.data());
+             }
+             return times_dict(t);
+           },
+           py::arg("values"), "runs the frame on the device only; returns stage times (ms, CUDA events)")
+      .def("poison", [](CudaEvaluator& ev) { ev.poison(); })
+      .def("download_compact",
+           [](CudaEvaluator& ev) {
+             const Plan& plan = ev.plan();
+             py::array_t<float> pos({(py::ssize_t)plan.output_vertices, (py::ssize_t)3});
+             py::array_t<float> nrm({(py::ssize_t)plan.patches, (py::ssize_t)plan.grid, (py::ssize_t)3});
+             ev.download_compact(pos.mutable_data(), nrm.mutable_data());
+             return py::make_tuple(pos, nrm);
+           },
+           "(positions (N, 3), grid normals (P, G, 3)): the compact device output of the last frame")
+      .def("benchmark",
+           [](CudaEvaluator& ev, Arr<float> D, int iters) {
+             const Plan& plan = ev.plan();
+             if ((size_t)D.size() != 3 * (size_t)plan.dims[0] * plan.dims[1] * plan.dims[2])
+               throw std::invalid_argument("control values: expected an (nu*nv*nw, 3) array matching the plan");
+             StageTimes t;
+             {
+               py::gil_scoped_release release;
+               t = ev.benchmark(D.data(), iters);
+             }
+             return times_dict(t);
+           },
+           py::arg("values"), py::arg("iters") = 200);
+  py::class_<CudaUpsamplingBaseline, std::shared_ptr<CudaUpsamplingBaseline>>(m, "CudaUpsamplingBaseline")
+      .def(py::init([](std::shared_ptr<Plan> plan, Arr<float> points, Arr<float> normals, Arr<uint32_t> pieces) {
+             return std::make_shared<CudaUpsamplingBaseline>(plan, to_vector(points), to_vector(normals),
+                                                             to_vector(pieces));
+           }),
+           py::arg("plan"), py::arg("points"), py::arg("normals"), py::arg("pieces"), py::keep_alive<1, 2>())
+      .def_property_readonly("points", &CudaUpsamplingBaseline::points)
+      .def_property_readonly("output_bytes", &CudaUpsamplingBaseline::output_bytes)
+      .def("evaluate",
+           [](CudaUpsamplingBaseline& b, Arr<float> D) {
+             if ((size_t)D.size() != b.control_values())
+               throw std::invalid_argument("control values: expected an (nu*nv*nw, 3) array matching the plan");
+             py::array_t<float> pos({(py::ssize_t)b.points(), (py::ssize_t)3});
+             py::array_t<float> nrm({(py::ssize_t)b.points(), (py::ssize_t)3});
+             b.evaluate(D.data(), pos.mutable_data(), nrm.mutable_data());
+             return py::make_tuple(pos, nrm);
+           },
+           py::arg("values"))
+      .def("benchmark",
+           [](CudaUpsamplingBaseline& b, Arr<float> D, int iters) {
+             if ((size_t)D.size() != b.control_values())
+               throw std::invalid_argument("control values: expected an (nu*nv*nw, 3) array matching the plan");
+             return times_dict(b.benchmark(D.data(), iters));
+           },
+           py::arg("values"), py::arg("iters") = 200);
 #else
   m.attr("cuda_compiled") = false;
   m.def("cuda_status", []() {

@@ -755,6 +755,8 @@ CudaUpsamplingBaseline::CudaUpsamplingBaseline(std::shared_ptr<const Plan> plan,
 
 CudaUpsamplingBaseline::~CudaUpsamplingBaseline() = default;
 
+size_t CudaUpsamplingBaseline::control_values() const { return impl_->nD; }
+
 void CudaUpsamplingBaseline::evaluate(const float* D, float* positions, float* normals) {
   Impl& m = *impl_;
   CK(cudaMemcpy(m.D, D, m.nD * sizeof(float), cudaMemcpyHostToDevice));

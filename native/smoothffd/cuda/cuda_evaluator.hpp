@@ -90,6 +90,7 @@ class CudaUpsamplingBaseline {
   ~CudaUpsamplingBaseline();
   int points() const { return count_; }
   size_t output_bytes() const { return 24 * (size_t)count_; }
+  size_t control_values() const;  // floats of D: 3 nu nv nw
   // Positions and normals (M x 3 each) to host memory.
   void evaluate(const float* D, float* positions, float* normals);
   StageTimes benchmark(const float* D, int iters);

@@ -7,12 +7,63 @@
 
 namespace sffd {
 
+// Factored contraction with term counts known at compile time: contract w first, then v,
+// then u (about 40% fewer multiply-adds than the plain triple loop, and fully unrolled).
+template <class T, class TD, int CU, int CV, int CW>
+SFFD_HD void tensor_eval_fixed(const int* iu, const T* wu, const T* du, const int* iv,
+                               const T* wv, const T* dv, const int* iw, const T* ww,
+                               const T* dw, const TD* D, int nv, int nw, T value[3], T grad[9]) {
+  T val[3] = {0, 0, 0}, gu[3] = {0, 0, 0}, gv[3] = {0, 0, 0}, gw[3] = {0, 0, 0};
+#pragma unroll
+  for (int a = 0; a < CU; ++a) {
+    T av[3] = {0, 0, 0}, avd[3] = {0, 0, 0}, awd[3] = {0, 0, 0};  // over b: value, d/dv, d/dw
+#pragma unroll
+    for (int b = 0; b < CV; ++b) {
+      const TD* row = D + 3 * ((long long)(iu[a] * nv + iv[b]) * nw);
+      T bw[3] = {0, 0, 0}, bwd[3] = {0, 0, 0};  // over c: value, d/dw
+#pragma unroll
+      for (int c = 0; c < CW; ++c) {
+        const TD* d = row + 3 * iw[c];
+#pragma unroll
+        for (int r = 0; r < 3; ++r) {
+          bw[r] += ww[c] * (T)d[r];
+          bwd[r] += dw[c] * (T)d[r];
+        }
+      }
+#pragma unroll
+      for (int r = 0; r < 3; ++r) {
+        av[r] += wv[b] * bw[r];
+        avd[r] += dv[b] * bw[r];
+        awd[r] += wv[b] * bwd[r];
+      }
+    }
+#pragma unroll
+    for (int r = 0; r < 3; ++r) {
+      val[r] += wu[a] * av[r];
+      gu[r] += du[a] * av[r];
+      gv[r] += wu[a] * avd[r];
+      gw[r] += wu[a] * awd[r];
+    }
+  }
+  for (int r = 0; r < 3; ++r) {
+    value[r] = val[r];
+    grad[3 * r] = gu[r];
+    grad[3 * r + 1] = gv[r];
+    grad[3 * r + 2] = gw[r];
+  }
+}
+
 // D is (nu, nv, nw, 3) C-order. value[3] = sum w_a w_b w_c D_abc; grad[3*r + axis] = dvalue_r/ds_axis.
 template <class T, class TD>
 SFFD_HD void tensor_eval(const int* iu, const T* wu, const T* du, int cu,
                          const int* iv, const T* wv, const T* dv, int cv,
                          const int* iw, const T* ww, const T* dw, int cw,
                          const TD* D, int nv, int nw, T value[3], T grad[9]) {
+  // The common stencils (degree 2 B-splines, Blender's cubic weights) take the unrolled path.
+  if (cu == 3 && cv == 3 && cw == 3)
+    return tensor_eval_fixed<T, TD, 3, 3, 3>(iu, wu, du, iv, wv, dv, iw, ww, dw, D, nv, nw, value, grad);
+  if (cu == 4 && cv == 4 && cw == 4)
+    return tensor_eval_fixed<T, TD, 4, 4, 4>(iu, wu, du, iv, wv, dv, iw, ww, dw, D, nv, nw, value, grad);
   for (int r = 0; r < 3; ++r) {
     value[r] = 0;
     grad[3 * r] = grad[3 * r + 1] = grad[3 * r + 2] = 0;

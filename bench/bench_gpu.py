@@ -1,0 +1,219 @@
+"""GPU benchmark of smooth FFD (issue 3): W1 (paper Table 1) at several levels, a 1M-triangle
+mesh, fused vs cuBLAS paths, ratio to the CPU backend, and the uniform upsampling baseline
+(paper Table 5). Writes a JSON with every number and prints a summary table last.
+
+    PYTHONPATH=python python3 bench/bench_gpu.py --out bench.json [--quick]
+"""
+
+import argparse
+import json
+import os
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "python"))
+import smoothffd  # noqa: E402
+from smoothffd import _core  # noqa: E402
+
+
+def torus(nu, nv, R=1.0, r=0.4):
+    """Torus grid: 2 nu nv triangles, exact smooth normals."""
+    u = np.linspace(0, 2 * np.pi, nu, endpoint=False)
+    v = np.linspace(0, 2 * np.pi, nv, endpoint=False)
+    U, Vv = np.meshgrid(u, v, indexing="ij")
+    n = np.stack([np.cos(U) * np.cos(Vv), np.sin(U) * np.cos(Vv), np.sin(Vv)], -1).reshape(-1, 3)
+    c = np.stack([R * np.cos(U), R * np.sin(U), np.zeros_like(U)], -1).reshape(-1, 3)
+    P = c + r * n
+    i, j = np.meshgrid(np.arange(nu), np.arange(nv), indexing="ij")
+    a = i * nv + j
+    b = ((i + 1) % nu) * nv + j
+    cc = ((i + 1) % nu) * nv + (j + 1) % nv
+    d = i * nv + (j + 1) % nv
+    F = np.concatenate([np.stack([a, b, cc], -1).reshape(-1, 3), np.stack([a, cc, d], -1).reshape(-1, 3)])
+    return P, F, n
+
+
+def lattice_for(P, rng, shape=(5, 5, 5), degree=(2, 2, 2), amount=0.06):
+    lo, hi = P.min(0), P.max(0)
+    pad = 0.05 * (hi - lo)
+    lat = smoothffd.BSplineLattice.identity(lo - pad, hi + pad, shape=shape, degree=degree)
+    size = np.linalg.norm(hi - lo)
+    return lat.with_control_points(lat.rest_points + amount * size * rng.standard_normal(lat.rest_points.shape))
+
+
+def values(lat):
+    return np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32)
+
+
+def cpu_time(plan, vals, reps):
+    ev = _core.CpuEvaluator(plan)
+    ev.evaluate(vals)
+    ts, stages = [], []
+    for _ in range(reps):
+        t0 = time.perf_counter()
+        _, _, st = ev.evaluate(vals)
+        ts.append((time.perf_counter() - t0) * 1e3)
+        stages.append(st)
+    return float(np.median(ts)), stages[int(np.argsort(ts)[len(ts) // 2])], ev.threads
+
+
+def gpu_case(name, P, F, N, lat, level, iters, cpu_reps, log):
+    mesh = smoothffd.Mesh(P, F, corner_normals=N[F.reshape(-1)])
+    t0 = time.perf_counter()
+    plan = smoothffd.Deformer(mesh, lat, level=level, device="cpu").plan
+    plan_ms = (time.perf_counter() - t0) * 1e3
+    vals = values(lat)
+    row = dict(case=name, level=level, input_triangles=int(len(F)), patches=plan.patches,
+               samples=plan.samples, output_vertices=plan.output_vertices,
+               output_triangles=plan.output_triangles, plan_ms=plan_ms)
+    ev = _core.CudaEvaluator(plan, "fused")
+    row["output_bytes"] = ev.output_bytes
+    row["device_bytes"] = ev.device_bytes
+    for path in ("fused", "cublas"):
+        ev.path = path
+        row[path] = ev.benchmark(vals, iters)
+        log(f"  {name} L={level} {path}: {row[path]}")
+    # Whole frame with the copy back to numpy (corner normals built on the device).
+    ev.path = "fused"
+    ev.evaluate(vals)
+    ts = []
+    for _ in range(5):
+        t0 = time.perf_counter()
+        _, _, st = ev.evaluate(vals)
+        ts.append((time.perf_counter() - t0) * 1e3)
+    row["evaluate_with_copy_back_ms"] = float(np.median(ts))
+    row["evaluate_stages"] = st
+    if cpu_reps:
+        row["cpu_ms"], row["cpu_stages"], row["cpu_threads"] = cpu_time(plan, vals, cpu_reps)
+    del ev
+    return row, plan
+
+
+def pn_upsample(P, F, N, level):
+    """PN triangles (Vlachos et al.) of the mesh, welded tessellation points at `level`:
+    vertices once, each edge's inner points once, each face's interior points once; the
+    normal is the normalized linear interpolation of the vertex normals."""
+    L = level
+    e_all = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    key = np.sort(e_all, axis=1)
+    edges, inv = np.unique(key, axis=0, return_inverse=True)
+    pts, nrm = [P], [N]
+
+    def bcoef(a, b):  # PN control point near a on edge a -> b
+        w = np.sum((P[b] - P[a]) * N[a], axis=1, keepdims=True)
+        return (2 * P[a] + P[b] - w * N[a]) / 3
+
+    a, b = edges[:, 0], edges[:, 1]
+    c_ab, c_ba = bcoef(a, b), bcoef(b, a)
+    for m in range(1, L):
+        t = m / L
+        pts.append((1 - t) ** 3 * P[a] + 3 * (1 - t) ** 2 * t * c_ab + 3 * (1 - t) * t ** 2 * c_ba + t ** 3 * P[b])
+        nrm.append((1 - t) * N[a] + t * N[b])
+    i0, i1, i2 = F[:, 0], F[:, 1], F[:, 2]
+    b210, b120 = bcoef(i0, i1), bcoef(i1, i0)
+    b021, b012 = bcoef(i1, i2), bcoef(i2, i1)
+    b102, b201 = bcoef(i2, i0), bcoef(i0, i2)
+    E = (b210 + b120 + b021 + b012 + b102 + b201) / 6
+    Vc = (P[i0] + P[i1] + P[i2]) / 3
+    b111 = E + (E - Vc) / 2
+    for j in range(1, L):
+        for i in range(1, L - j):
+            u, v = i / L, j / L
+            w = 1 - u - v
+            x = (w ** 3 * P[i0] + u ** 3 * P[i1] + v ** 3 * P[i2] + 3 * w * w * u * b210 + 3 * w * u * u * b120
+                 + 3 * u * u * v * b021 + 3 * u * v * v * b012 + 3 * w * v * v * b102 + 3 * w * w * v * b201
+                 + 6 * w * u * v * b111)
+            pts.append(x)
+            nrm.append(w * N[i0] + u * N[i1] + v * N[i2])
+    pts = np.concatenate(pts)
+    nrm = np.concatenate(nrm)
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    return pts, nrm
+
+
+def pieces_of(lat, pts):
+    s = pts @ lat.object_to_param[:, :3].T + lat.object_to_param[:, 3]
+    planes = lat.knot_planes()
+    packed = np.zeros(len(pts), np.uint32)
+    for a in range(3):
+        idx = np.searchsorted(planes[a], s[:, a], side="right")
+        packed |= idx.astype(np.uint32) << np.uint32(10 * a)
+    return packed
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--out", default="bench_gpu.json")
+    ap.add_argument("--iters", type=int, default=200)
+    ap.add_argument("--quick", action="store_true", help="W1 at L=10 only, no 1M mesh")
+    ap.add_argument("--no-1m", action="store_true")
+    args = ap.parse_args()
+    usable, why = smoothffd.cuda_status()
+    if not usable:
+        sys.exit(f"no usable CUDA device: {why}")
+    lines = []
+
+    def log(s):
+        print(s, flush=True)
+        lines.append(s)
+
+    rng = np.random.default_rng(2015)
+    result = dict(device=why, date=time.strftime("%Y-%m-%d %H:%M:%S"), w1=[], big=None, baseline=[])
+    P, F, N = torus(167, 140)  # 46,760 triangles (paper Table 1: 46,742)
+    lat = lattice_for(P, rng)
+    levels = (10,) if args.quick else (4, 10, 12, 14, 16)
+    plans = {}
+    for L in levels:
+        row, plan = gpu_case("W1", P, F, N, lat, L, args.iters, 3 if L in (4, 10, 16) else 0, log)
+        result["w1"].append(row)
+        plans[L] = plan
+    # Paper Table 5: smooth FFD vs uniform upsampling (PN + every sample deformed) at the same
+    # number of sub-triangles a patch.
+    for L in (10, 12, 14, 16):
+        if L not in plans:
+            continue
+        pts, nrm = pn_upsample(P, F, N, L)
+        base = _core.CudaUpsamplingBaseline(plans[L], pts.astype(np.float32), nrm.astype(np.float32),
+                                            pieces_of(lat, pts))
+        bt = base.benchmark(values(lat), args.iters)
+        sffd = next(r for r in result["w1"] if r["level"] == L)
+        best = min(sffd["fused"]["total_events"], sffd["cublas"]["total_events"])
+        result["baseline"].append(dict(level=L, sub_triangles=L * L, points=base.points,
+                                       upsampling_ms=bt["deform_samples"], smooth_ffd_ms=best,
+                                       ratio=best / bt["deform_samples"]))
+        log(f"  baseline L={L}: {result['baseline'][-1]}")
+        del base
+    if not (args.quick or args.no_1m):
+        P2, F2, N2 = torus(1000, 500)  # 1,000,000 triangles
+        lat2 = lattice_for(P2, rng)
+        row, _ = gpu_case("1M", P2, F2, N2, lat2, 10, max(args.iters // 4, 20), 2, log)
+        result["big"] = row
+    with open(args.out, "w") as f:
+        json.dump(result, f, indent=1)
+
+    # Summary
+    print("\n=== summary (ms, medians; device:", why, ")")
+    hdr = f"{'case':6} {'L':>3} {'tris_out':>10} {'path':7} {'stages':60} {'events':>8} {'graph':>8} {'floor':>7} {'x_floor':>7} {'cpu':>8} {'cpu/gpu':>8}"
+    print(hdr)
+    for row in result["w1"] + ([result["big"]] if result["big"] else []):
+        for path in ("fused", "cublas"):
+            b = row[path]
+            st = " ".join(f"{k}={v:.4f}" for k, v in b.items()
+                          if k not in ("total_events", "total_graph", "d2d_copy_ms", "d2d_bandwidth_GBps",
+                                       "floor_ms", "output_bytes"))
+            cpu = row.get("cpu_ms", float("nan"))
+            best = min(b["total_events"], b["total_graph"])
+            print(f"{row['case']:6} {row['level']:>3} {row['output_triangles']:>10} {path:7} {st:60} "
+                  f"{b['total_events']:8.4f} {b['total_graph']:8.4f} {b['floor_ms']:7.4f} "
+                  f"{best / b['floor_ms']:7.2f} {cpu:8.2f} {cpu / best:8.1f}")
+        print(f"       output {row['output_bytes'] / 1e6:.1f} MB, d2d {row['fused']['d2d_bandwidth_GBps']:.0f} GB/s, "
+              f"evaluate()+copy back {row['evaluate_with_copy_back_ms']:.2f} ms, plan {row['plan_ms']:.0f} ms")
+    for b in result["baseline"]:
+        print(f"baseline {b['sub_triangles']:>3} sub-tris/patch: upsampling {b['upsampling_ms']:.4f} ms "
+              f"({b['points']} pts), smooth FFD {b['smooth_ffd_ms']:.4f} ms, ratio {b['ratio']:.3f} (paper 0.82 at 256)")
+
+
+if __name__ == "__main__":
+    main()

@@ -194,9 +194,9 @@ def cmd_deform(args, progress):
         note["detail"] = f"{len(res.triangles):,} triangles, {len(res.positions):,} vertices"
     with progress.stage("write") as note:
         _ensure_parent(args.output)
-        objio.write_obj(args.output, res.positions, res.triangles, res.corner_normals, res.uvs,
-                        header=f"smoothffd deform {os.path.basename(args.input)} "
-                               f"--lattice {os.path.basename(args.lattice)} --level {args.level}")
+        objio.write_result(args.output, res,
+                           header=f"smoothffd deform {os.path.basename(args.input)} "
+                                  f"--lattice {os.path.basename(args.lattice)} --level {args.level}")
         note["detail"] = f"{args.output}, {os.path.getsize(args.output) / 2**20:.1f} MiB"
     if args.stats:
         stats = dict(res.stats)
@@ -244,7 +244,7 @@ def _describe_obj(path):
              f"largest {int(sizes.max()) if len(sizes) else 0} corners)",
              f"corners     {len(d.corner_vertices):,}; fan triangulation: {int((sizes - 2).sum()):,} triangles"]
     if d.corner_normals is not None:
-        lines.append(f"normals     per corner, {len(np.unique(d.corner_normals, axis=0)):,} distinct")
+        lines.append(f"normals     per corner, {len(objio._dedupe(d.corner_normals)[0]):,} distinct")
     else:
         lines.append("normals     none (smooth vertex normals will be computed)")
     lines.append(f"uvs         {'per corner' if d.uvs is not None else 'none'}")

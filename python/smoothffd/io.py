@@ -17,7 +17,7 @@ from typing import NamedTuple, Optional
 
 import numpy as np
 
-__all__ = ["ObjData", "read_obj", "read_obj_mesh", "write_obj"]
+__all__ = ["ObjData", "read_obj", "read_obj_mesh", "write_obj", "write_result"]
 
 
 class ObjData(NamedTuple):
@@ -512,3 +512,9 @@ def _write_polygon_rows(fh, stack, slot, offsets, chunk=500_000):
         rows[:, 1:] = stack[c0:c1]
         fh.write((("%s " + slot) * (c1 - c0)) % tuple(rows.ravel().tolist()))
     fh.write("\n")
+
+
+def write_result(path, result, header=None):
+    """Write a ``smoothffd.Result`` (positions, triangles, corner normals, UVs) as OBJ."""
+    write_obj(path, result.positions, result.triangles, result.corner_normals, result.uvs,
+              header=header)

@@ -12,7 +12,7 @@ import numpy as np
 
 __all__ = ["ErrorStats", "EdgeReport", "geometry_error", "normal_angle_error",
            "signed_volume", "volume_error", "edge_report", "is_watertight", "radial_error",
-           "dense_reference"]
+           "dense_reference", "reference_errors"]
 
 
 class ErrorStats(NamedTuple):
@@ -173,3 +173,22 @@ def _cofactor(j):
     c0, c1, c2 = j[:, :, 0], j[:, :, 1], j[:, :, 2]
     # cof(J) @ n == (J e1 x J e2) n_0 + (J e2 x J e0) n_1 + (J e0 x J e1) n_2
     return np.stack([np.cross(c1, c2), np.cross(c2, c0), np.cross(c0, c1)], axis=2)
+
+
+def reference_errors(result, lattice, closed=True):
+    """Compare a ``smoothffd.Result`` with exact FFD of its flat rest surface (the paper's
+    section 6.3 measures; exact for flat-faced inputs such as its cube).
+
+    Returns a dict: ``geometry`` and ``normal`` (degrees) ErrorStats over all output vertices /
+    corners, and when ``closed``: ``volume``, ``reference_volume`` (the exact FFD sampled at
+    the output vertices) and ``volume_error`` (relative). The first V output vertices are the
+    input vertices, so their geometry error should be ~float32 rounding.
+    """
+    ref_pos, ref_nrm = dense_reference(lattice, result.rest_positions, result.triangles)
+    out = {"geometry": geometry_error(result.positions, ref_pos),
+           "normal": normal_angle_error(result.corner_normals, ref_nrm)}
+    if closed:
+        v = signed_volume(result.positions, result.triangles)
+        v_ref = signed_volume(ref_pos, result.triangles)
+        out.update(volume=v, reference_volume=v_ref, volume_error=volume_error(v, v_ref))
+    return out

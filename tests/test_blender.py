@@ -1,4 +1,4 @@
-"""Runs the add-on's Blender scripts (tests/blender/) in real Blenders and checks they pass.
+"""Runs the add-on's Blender scripts (tests/blender/check_*.py) in real Blenders and checks they pass.
 
 Two Blenders: Debian's `blender` binary (3.4.1) in background mode, and PyPI `bpy` (4.5+) in
 build/venv-bpy (made by scripts/setup_blender.sh). A test is skipped, with the reason, only when
@@ -38,8 +38,10 @@ def _bpy_cmd(script, *args):
 RUNNERS = {"blender": _blender_cmd, "bpy": _bpy_cmd}
 
 
-def _run(cmd, timeout=TIMEOUT):
+
+def _run(cmd, timeout=TIMEOUT, extra_env=None):
     env = dict(os.environ)
+    env.update(extra_env or {})
     env.setdefault("PYTHONUNBUFFERED", "1")
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env,
                           cwd=ROOT)
@@ -55,8 +57,8 @@ def _summary(out):
 
 
 @pytest.mark.parametrize("runner", sorted(RUNNERS))
-@pytest.mark.parametrize("script", ["test_parity.py", "test_normals.py", "test_live.py",
-                                    "test_render.py"])
+@pytest.mark.parametrize("script", ["check_parity.py", "check_normals.py", "check_live.py",
+                                    "check_render.py"])
 def test_blender_script(runner, script):
     rc, out = _run(RUNNERS[runner](script))
     assert rc == 0, f"{runner} {script} failed (rc={rc}):\n{_summary(out)}\n--- tail ---\n{out[-3000:]}"
@@ -67,7 +69,7 @@ def test_command_line_render(tmp_path):
     """`blender -b file.blend -a` renders every frame at the render level with that frame's
     lattice (the add-on enabled by --python, as an installed add-on would be)."""
     blend = str(tmp_path / "scene.blend")
-    rc, out = _run(_blender_cmd("test_render.py", blend))
+    rc, out = _run(_blender_cmd("check_render.py", blend))
     assert rc == 0 and os.path.exists(blend), _summary(out)
     record = str(tmp_path / "frames.json")
     cmd = [shutil.which("blender"), "-b", blend, "--python-exit-code", "1",
@@ -78,6 +80,28 @@ def test_command_line_render(tmp_path):
     frames = json.load(open(record))
     assert [f["frame"] for f in frames] == [1, 2, 3]
     for f in frames:
-        assert f["tris"] == f["patches"] * 3 ** 2, f   # render level 3 in test_render.py
+        assert f["tris"] == f["patches"] * 3 ** 2, f   # render level 3 in check_render.py
         assert f["err"] < 1e-5 * 1.6, f                     # lattice size 1.6
         assert f["status"].startswith("OK"), f
+
+
+@pytest.fixture(scope="module")
+def addon_zip(tmp_path_factory):
+    out = tmp_path_factory.mktemp("zip")
+    proc = subprocess.run(["bash", os.path.join(ROOT, "scripts", "build_addon_zip.sh"), str(out)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    zips = [f for f in os.listdir(out) if f.endswith(".zip")]
+    assert len(zips) == 1, zips
+    return os.path.join(out, zips[0])
+
+
+@pytest.mark.parametrize("runner", sorted(RUNNERS))
+def test_install_zip(runner, addon_zip, tmp_path):
+    """The zip installs (legacy add-on on 3.4, extension on 4.2+) and runs its bundled core."""
+    cmd = RUNNERS[runner]("check_install.py", addon_zip)
+    # A private user folder: never touch the real Blender configuration.
+    env = {"BLENDER_USER_RESOURCES": str(tmp_path), "BLENDER_USER_SCRIPTS": str(tmp_path / "scripts"),
+           "BLENDER_USER_CONFIG": str(tmp_path / "config"), "SMOOTHFFD_PYTHONPATH": ""}
+    rc, out = _run(cmd, extra_env=env)
+    assert rc == 0 and " passed, 0 failed" in out, _summary(out) + out[-2000:]

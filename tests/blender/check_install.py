@@ -1,0 +1,43 @@
+"""Installs the add-on zip (scripts/build_addon_zip.sh) the way users do: as an extension on
+4.2+ (Install from Disk) and as a legacy add-on before; then checks that it registered, that
+it runs its *bundled* core, and that a Smooth FFD modifier works. Argument: the zip.
+Run with BLENDER_USER_* pointing at a temporary folder (tests/test_blender.py does)."""
+import sys
+
+import bpy
+
+
+def main():
+    zip_path = sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv else sys.argv[1]
+    if bpy.app.version >= (4, 2):
+        r = bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default",
+                                                     enable_on_install=True)
+    else:
+        bpy.ops.preferences.addon_install(filepath=zip_path, overwrite=True)
+        r = bpy.ops.preferences.addon_enable(module="smooth_ffd")
+    names = [m for m in sys.modules if m == "smooth_ffd" or m.endswith(".smooth_ffd")]
+    checks = [("install operator finished", r == {'FINISHED'}, r),
+              ("add-on module loaded", bool(names), names)]
+    if names:
+        addon = sys.modules[names[0]]
+        core_file = addon.core.smoothffd().__file__
+        checks.append(("bundled core used", "_vendor" in core_file, core_file))
+        checks.append(("operator registered", hasattr(bpy.ops.object, "smooth_ffd_add"), ""))
+        bpy.ops.mesh.primitive_cube_add()
+        obj = bpy.context.object
+        lat_obj = bpy.data.objects.new("lat", bpy.data.lattices.new("lat"))
+        bpy.context.scene.collection.objects.link(lat_obj)
+        lat_obj.scale = (2, 2, 2)
+        mod = addon.add_smooth_ffd(obj, lat_obj, 2, 2)
+        checks.append(("modifier works", addon.status(mod).startswith("OK"), addon.status(mod)))
+    failed = 0
+    for name, ok, detail in checks:
+        print(f"{'PASS' if ok else 'FAIL'} {name} {detail}")
+        failed += not ok
+    print(f"{len(checks) - failed} passed, {failed} failed")
+    sys.stdout.flush()
+    if failed:
+        raise SystemExit(1)
+
+
+main()

@@ -153,6 +153,8 @@ def test_forward_references_allowed(tmp_path):
         ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\n# c\nf 1//1 2//2 3//1\n", 6, "normal index 2"),
         ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 a\n", 4, "non-integer index"),
         ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3/4/5/6\n", 4, "malformed face corner"),
+        # slash totals match a uniform v/t/n layout (6 = 3 corners x 2) but one corner has 3
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf 1/1/1 2/1/1/1 3/1\n", 6, "malformed face corner"),
         ("v 0 0 0\nvn 0 nan 1\n", 2, "non-finite normal"),
         ("vt\n", 1, "texture coordinate needs"),
     ],

@@ -28,6 +28,7 @@ def _import_pure(name):
         sys.modules["smoothffd"] = pkg
         return importlib.import_module(f"smoothffd.{name}")
 
+
 lj = _import_pure("lattice_json")
 
 DOCS = pathlib.Path(__file__).resolve().parents[1] / "docs" / "formats.md"

@@ -110,7 +110,10 @@ def _parse_uniform_corners(joined, C):
         if joined.count("//") != C:
             return None
         joined = joined.replace("//", "/0/")  # 0 is never a valid index: it marks "absent"
-    elif "//" in joined or (k == 1 and re.search(r"/[^ /]*/", joined)):
+    elif "//" in joined:
+        return None
+    # With no corner holding more than k slashes, the total k*C forces exactly k in each.
+    if k == 1 and re.search(r"/[^ /]*/", joined) or k == 2 and re.search(r"/[^ /]*/[^ /]*/", joined):
         return None  # slash totals match but the corners mix layouts
     with warnings.catch_warnings():  # fromstring warns (and stops) on junk: we count instead
         warnings.simplefilter("ignore")

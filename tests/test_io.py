@@ -1,7 +1,6 @@
 """OBJ reading/writing (smoothffd.io): pure Python, no native core needed."""
 import pathlib
 import re
-import warnings
 
 import numpy as np
 import pytest

@@ -1,0 +1,146 @@
+// Unit tests of the CPU evaluator (eval/cpu_evaluator.hpp): the identity lattice (zero
+// displacements) keeps input vertices and flat meshes, a translation moves everything,
+// thread counts agree bitwise, random control values give finite unit-normal output.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <random>
+
+#include "smoothffd/eval/cpu_evaluator.hpp"
+#include "test_util.hpp"
+
+using namespace sffd;
+using namespace sffd_test;
+
+namespace {
+
+struct Out {
+  std::vector<float> pos, nrm;
+};
+
+Out run(const std::shared_ptr<const Plan>& plan, const std::vector<float>& D, int threads = 0) {
+  CpuEvaluator ev(plan, threads);
+  Out o;
+  o.pos.resize(3 * (size_t)plan->output_vertices);
+  o.nrm.resize(9 * (size_t)plan->output_triangles);
+  ev.evaluate(D.data(), o.pos.data(), o.nrm.data());
+  return o;
+}
+
+std::shared_ptr<const Plan> plan_of(const InputMesh& m, const LatticeSpec& s, int level) {
+  PlanOptions opt;
+  opt.level = level;
+  return std::make_shared<const Plan>(build_plan(m, s, opt));
+}
+
+void expect_unit_normals(const Out& o) {
+  for (size_t i = 0; i < o.nrm.size(); i += 3) {
+    double l = std::sqrt(double(o.nrm[i]) * o.nrm[i] + double(o.nrm[i + 1]) * o.nrm[i + 1] +
+                         double(o.nrm[i + 2]) * o.nrm[i + 2]);
+    ASSERT_NEAR(l, 1.0, 1e-5) << "normal " << i / 3;
+  }
+}
+
+}  // namespace
+
+TEST(CpuEvaluator, IdentityKeepsAFlatGridFlat) {
+  for (auto s : {bspline_box(2, 4), bspline_box(3, 7), blender_box(BlenderInterp::BSpline, 4)}) {
+    InputMesh m = flat_grid(5, 0.1, 0.9, 0.37);
+    auto plan = plan_of(m, s, 4);
+    Out o = run(plan, zero_values(s));
+    const int V = plan->input_vertices;
+    for (int v = 0; v < V; ++v)
+      for (int i = 0; i < 3; ++i) EXPECT_EQ(o.pos[3 * v + i], (float)m.positions[3 * v + i]);
+    for (int v = 0; v < plan->output_vertices; ++v) {
+      EXPECT_NEAR(o.pos[3 * v + 2], 0.37f, 1e-6f);
+      for (int i = 0; i < 3; ++i) EXPECT_NEAR(o.pos[3 * v + i], plan->rest_positions[3 * v + i], 2e-6f);
+    }
+    for (size_t i = 0; i < o.nrm.size(); i += 3) {
+      EXPECT_NEAR(o.nrm[i], 0.0f, 1e-5f);
+      EXPECT_NEAR(o.nrm[i + 1], 0.0f, 1e-5f);
+      EXPECT_NEAR(o.nrm[i + 2], 1.0f, 1e-5f);
+    }
+  }
+}
+
+TEST(CpuEvaluator, IdentityFixesInputVerticesOfAClosedMesh) {
+  InputMesh m = octahedron(0.47, 0.52, 0.55, 0.4);
+  LatticeSpec s = bspline_box(2, 5);
+  auto plan = plan_of(m, s, 5);
+  Out o = run(plan, zero_values(s));
+  for (int v = 0; v < 6; ++v)
+    for (int i = 0; i < 3; ++i) EXPECT_EQ(o.pos[3 * v + i], (float)m.positions[3 * v + i]);
+  for (float x : o.pos) ASSERT_TRUE(std::isfinite(x));
+  expect_unit_normals(o);
+  // Clip vertices sit on the PN rest surface, which bulges outwards from the flat faces.
+  for (int v = 6; v < plan->sub_vertices; ++v) {
+    double r2 = 0, c[3] = {0.47, 0.52, 0.55};
+    for (int i = 0; i < 3; ++i) r2 += (o.pos[3 * v + i] - c[i]) * (o.pos[3 * v + i] - c[i]);
+    EXPECT_LE(std::sqrt(r2), 0.4 + 1e-5);
+  }
+}
+
+TEST(CpuEvaluator, TranslationMovesEverything) {
+  InputMesh m = octahedron(0.47, 0.52, 0.55, 0.4);
+  LatticeSpec s = bspline_box(3, 6);
+  auto plan = plan_of(m, s, 4);
+  Out rest = run(plan, zero_values(s));
+  std::vector<float> D(3 * (size_t)s.count());
+  const float t[3] = {0.25f, -0.5f, 1.0f};
+  for (size_t i = 0; i < D.size(); ++i) D[i] = t[i % 3];
+  Out moved = run(plan, D);
+  for (size_t i = 0; i < rest.pos.size(); ++i) EXPECT_NEAR(moved.pos[i], rest.pos[i] + t[i % 3], 2e-6f);
+  for (size_t i = 0; i < rest.nrm.size(); ++i) EXPECT_NEAR(moved.nrm[i], rest.nrm[i], 1e-5f);
+}
+
+TEST(CpuEvaluator, ThreadCountDoesNotChangeBits) {
+  InputMesh m = flat_grid(12, 0.05, 0.95, 0.4);
+  for (size_t i = 2; i < m.positions.size(); i += 3) m.positions[i] += 0.1 * std::sin(7 * m.positions[i - 2]);
+  LatticeSpec s = bspline_box(2, 5);
+  auto plan = plan_of(m, s, 6);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> U(-0.2f, 0.2f);
+  std::vector<float> D(3 * (size_t)s.count());
+  for (float& d : D) d = U(rng);
+  Out one = run(plan, D, 1), two = run(plan, D, 2), many = run(plan, D, 7);
+  ASSERT_GT(plan->output_vertices, 4096);  // several chunks
+  EXPECT_EQ(0, std::memcmp(one.pos.data(), two.pos.data(), 4 * one.pos.size()));
+  EXPECT_EQ(0, std::memcmp(one.nrm.data(), two.nrm.data(), 4 * one.nrm.size()));
+  EXPECT_EQ(0, std::memcmp(one.pos.data(), many.pos.data(), 4 * one.pos.size()));
+  EXPECT_EQ(0, std::memcmp(one.nrm.data(), many.nrm.data(), 4 * one.nrm.size()));
+}
+
+TEST(CpuEvaluator, RandomMeshesAndControlValuesGiveFiniteOutput) {
+  std::mt19937 rng(99);
+  std::uniform_real_distribution<float> U(-1.0f, 1.0f);
+  std::uniform_int_distribution<int> lvl(1, 4);
+  for (int trial = 0; trial < 60; ++trial) {
+    InputMesh m = random_mesh(rng);
+    LatticeSpec s = random_lattice(rng);
+    auto plan = plan_of(m, s, lvl(rng));
+    std::vector<float> D(3 * (size_t)s.count());
+    for (float& d : D) d = U(rng);
+    Out o = run(plan, D);
+    for (float x : o.pos) ASSERT_TRUE(std::isfinite(x)) << "trial " << trial;
+    for (float x : o.nrm) ASSERT_TRUE(std::isfinite(x)) << "trial " << trial;
+    expect_unit_normals(o);
+  }
+}
+
+TEST(CpuEvaluator, CollapsingLatticeGivesFiniteOutput) {
+  // All control points pulled to one point (a singular deformation: J = 0 inside).
+  InputMesh m = octahedron(0.47, 0.52, 0.55, 0.4);
+  LatticeSpec s = bspline_box(2, 4);
+  auto plan = plan_of(m, s, 3);
+  // Greville abscissae of the clamped degree-2, 4-point axis: 0, 1/4, 3/4, 1; D = -p_ijk.
+  const double g[4] = {0, 0.25, 0.75, 1};
+  std::vector<float> D;
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j)
+      for (int k = 0; k < 4; ++k) D.insert(D.end(), {(float)-g[i], (float)-g[j], (float)-g[k]});
+  Out o = run(plan, D);
+  for (float x : o.pos) EXPECT_NEAR(x, 0.0f, 1e-5f);
+  for (float x : o.nrm) ASSERT_TRUE(std::isfinite(x));
+  expect_unit_normals(o);
+}

@@ -261,7 +261,9 @@ def test_blender_jacobian_on_lattice_boundary_is_inner(n):
     pts[..., 1] += rest[..., 0] ** 2 + rest[..., 0] + 0.3 * rest[..., 2]
     pts[..., 2] += 0.5 * rest[..., 1] ** 2 - 0.2 * rest[..., 0]
     lat = smoothffd.BlenderLattice(rest, pts, ("LINEAR",) * 3)
-    g = np.array([-0.5, -0.3, 0.1, 0.5])
+    # Interior coordinates stay off the interior knot planes: there LINEAR's Jacobian jumps and
+    # which side s = (q - f) / d lands on is a matter of rounding (both sides are right).
+    g = np.array([-0.5, -0.33, 0.13, 0.5])
     p = np.array([[x, y, z] for x in (-0.5, 0.5) for y in g for z in g])  # on the u faces
     p = np.concatenate([p, p[:, [1, 0, 2]], p[:, [1, 2, 0]]])              # v and w faces
     _, jac = lat.evaluate(p)

@@ -229,8 +229,16 @@ int AxisBasis::find_piece(double s) const {
     int mid = (lo + hi + 1) / 2;
     if (pieces_[mid].lo <= s) lo = mid; else hi = mid - 1;
   }
+  // Within rounding of a plane counts as on it (and takes the piece above, as Blender's floor
+  // does for exact values), except on the top of the polynomial range, which takes the piece
+  // inside: vertices fitted to a lattice's or a box's faces get the one-sided inner Jacobian,
+  // whatever the rounding of s = A p + b.
+  const double eps = 1e-9 * (1.0 + std::abs(s));
   int last = (int)pieces_.size() - 1;
-  if (lo == last && lo > 0 && s == pieces_[lo].lo && pieces_[lo - 1].degree > 0) --lo;
+  if (lo < last && pieces_[lo + 1].lo - s <= eps) ++lo;
+  if (lo == last && lo > 0 && pieces_[lo].degree == 0 && pieces_[lo - 1].degree > 0 &&
+      s - pieces_[lo].lo <= eps)
+    --lo;
   return lo;
 }
 

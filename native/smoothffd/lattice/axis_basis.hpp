@@ -44,9 +44,9 @@ class AxisBasis {
   const std::vector<AxisPiece>& pieces() const { return pieces_; }
   // Values of s where the polynomial piece changes (the knot planes of this axis), ascending.
   std::vector<double> planes() const;
-  // Index of the piece used at s. A point exactly on a plane takes the piece above it, except
-  // at the top of the last polynomial piece, which keeps it (so the Jacobian on the boundary
-  // of a B-spline box is the one-sided inner one).
+  // Index of the piece used at s. A point on a plane takes the piece above it, except on the
+  // outer boundary of the polynomial range (within rounding), which takes the inner piece (so
+  // the Jacobian on the faces of a B-spline box or a Blender lattice is the inner one).
   int find_piece(double s) const;
 
   // Weights and d/ds of the terms of piece `pi` at s (arrays of kMaxTerms).

@@ -81,6 +81,8 @@ def read_corner_normals(mesh):
         # exactly what Blender shades.
         mesh.calc_normals_split()
         mesh.loops.foreach_get("normal", out)
+        if not mesh.is_evaluated:
+            mesh.free_normals_split()   # leave the user's mesh as it was
     return out.reshape(-1, 3)
 
 

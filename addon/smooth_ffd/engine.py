@@ -35,6 +35,13 @@ def _state(obj, mod):
     return st
 
 
+def invalidate_sources():
+    """After undo/redo the source meshes may be older versions: re-read them (plans whose
+    source is unchanged stay valid, as they are keyed by the source's content)."""
+    for st in _states.values():
+        st.source = None
+
+
 def forget(obj=None, mod=None):
     if obj is None:
         _states.clear()
@@ -92,19 +99,27 @@ def set_status(obj, mod, text, ok):
 
 
 def _source(obj, settings, st, mesh_changed):
-    mesh = obj.data
-    if obj.mode == 'EDIT':
-        obj.update_from_editmode()   # edit-mode changes live in BMesh until synced
-        mesh_changed = True
     group_index = None
     if settings.vertex_group:
         idx = obj.vertex_groups.find(settings.vertex_group)
         # Like Blender's Lattice modifier, an unknown group name means no weighting.
         group_index = idx if idx >= 0 else None
+    mesh = obj.data
     stamp = (group_index, settings.invert, len(mesh.vertices), len(mesh.loops), len(mesh.polygons))
-    if st.source is None or mesh_changed or st.source_stamp != stamp:
+    if st.source is not None and not mesh_changed and st.source_stamp == stamp:
+        return st.source
+    if obj.mode == 'EDIT':
+        # Edit-mode changes live in a BMesh, and a mesh in edit mode hides its UV and other
+        # corner data from Python: sync, then read a temporary copy.
+        obj.update_from_editmode()
+        tmp = mesh.copy()
+        try:
+            st.source = meshio.SourceMesh(tmp, group_index, settings.invert)
+        finally:
+            bpy.data.meshes.remove(tmp)
+    else:
         st.source = meshio.SourceMesh(mesh, group_index, settings.invert)
-        st.source_stamp = stamp
+    st.source_stamp = stamp
     return st.source
 
 

@@ -43,7 +43,9 @@ def update_all(scene=None, depsgraph=None, render=None, changed_meshes=None, for
         for obj, mod in smooth_ffd_modifiers(scene):
             if not (mod.show_render if render else mod.show_viewport):
                 continue
-            mesh_changed = changed_meshes is None or obj.data in changed_meshes or obj in changed_meshes
+            # The object itself is re-evaluated whenever its lattice moves; only an update
+            # of its mesh data means the source changed.
+            mesh_changed = changed_meshes is None or obj.data in changed_meshes
             count += engine.update_modifier(obj, mod, depsgraph, render=render,
                                             mesh_changed=mesh_changed, force=force)
         return count
@@ -103,6 +105,11 @@ def on_load(*_args):
 
 
 @persistent
+def on_undo_redo(scene, *_args):
+    engine.invalidate_sources()
+
+
+@persistent
 def on_render_pre(scene, *_args):
     global _rendering
     _rendering = True
@@ -135,6 +142,8 @@ _HANDLERS = (
     ("depsgraph_update_post", on_depsgraph_update),
     ("frame_change_post", on_frame_change),
     ("load_post", on_load),
+    ("undo_post", on_undo_redo),
+    ("redo_post", on_undo_redo),
     ("render_init", on_render_init),
     ("render_pre", on_render_pre),
     ("render_cancel", on_render_done),

@@ -20,15 +20,34 @@ def read_lattice(lattice_obj, depsgraph):
     count = shape[0] * shape[1] * shape[2]
     if len(ev.points) != count:   # evaluated copy lagging behind a resize: use the original
         ev = data
-    rest = np.empty(count * 3, dtype=np.float32)
     pts = np.empty(count * 3, dtype=np.float32)
-    # co is read-only rest position; never derive it from the ranges (see reference-facts).
-    data.points.foreach_get("co", rest)
     ev.points.foreach_get("co_deform", pts)
+    rest = _rest_points(data, shape)
     interp = logic.interpolation_names((data.interpolation_type_u, data.interpolation_type_v,
                                         data.interpolation_type_w))
     key = logic.digest(rest, pts, interp, shape)
     return logic.lattice_grid(rest, shape), logic.lattice_grid(pts, shape), interp, shape, key
+
+
+_rest_cache = {}   # lattice name -> (shape, rest): edit mode hides the rest positions
+
+
+def _rest_points(data, shape):
+    """LatticePoint.co, the rest positions (never derived from the ranges: old or resized
+    lattices differ, see reference-facts). In edit mode co is garbage (the edit lattice has
+    no rest layout), so the last object-mode reading is used, else Blender's default."""
+    count = shape[0] * shape[1] * shape[2]
+    if not data.is_editmode:
+        rest = np.empty(count * 3, dtype=np.float32)
+        data.points.foreach_get("co", rest)
+        _rest_cache[data.name_full] = (shape, rest)
+        return rest
+    cached = _rest_cache.get(data.name_full)
+    if cached is not None and cached[0] == shape:
+        return cached[1]
+    axes = [np.linspace(-0.5, 0.5, n) if n > 1 else np.zeros(1) for n in shape]
+    w, v, u = np.meshgrid(axes[2], axes[1], axes[0], indexing="ij")   # u fastest
+    return np.stack([u, v, w], axis=-1).astype(np.float32).ravel()
 
 
 def world_matrix(obj, depsgraph):

@@ -108,12 +108,51 @@ def test_frames_and_shape_keys():
     parity("lattice shape key", obj, lat, ref, mod)
 
 
-def test_source_edit():
+def test_hook():
+    obj, lat, ref, mod = scene()
+    empty = T.link(bpy.data.objects.new("hook", None))
+    hook = lat.modifiers.new("Hook", 'HOOK')
+    hook.object = empty
+    hook.vertex_indices_set([0, 1, 3, 4])
+    T.update()
+    empty.location = (0.2, 0.3, -0.4)
+    T.update()
+    parity("lattice hook", obj, lat, ref, mod)
+
+
+def test_edit_modes():
     obj, lat, ref, mod = scene("cube")
     obj.data.vertices[0].co.x -= 0.3
     obj.data.update()
     T.update()
     parity("edit source mesh", obj, lat, ref, mod)
+    # Source in edit mode: BMesh edits show live.
+    import bmesh
+    bpy.context.view_layer.objects.active = obj
+    bpy.ops.object.mode_set(mode='EDIT')
+    bm = bmesh.from_edit_mesh(obj.data)
+    bm.verts.ensure_lookup_table()
+    bm.verts[1].co.z += 0.25
+    bmesh.update_edit_mesh(obj.data)
+    T.update()
+    # The twin sharing a mesh in edit mode is no reference (it shows the cage), so compare
+    # the live edit-mode result with the result after leaving edit mode, then with the twin.
+    live = T.positions(T.evaluated_mesh(obj))
+    bpy.ops.object.mode_set(mode='OBJECT')
+    T.update()
+    after = T.positions(T.evaluated_mesh(obj))
+    T.check("source in edit mode: live result", live.shape == after.shape
+            and np.abs(live - after).max() < 1e-6, smooth_ffd.status(mod))
+    parity("source edit mode left", obj, lat, ref, mod)
+    # Lattice in edit mode: moving its points shows live.
+    bpy.context.view_layer.objects.active = lat
+    bpy.ops.object.mode_set(mode='EDIT')
+    lat.data.points[7].co_deform.x += 0.3
+    lat.data.update_tag()
+    T.update()
+    parity("lattice in edit mode", obj, lat, ref, mod)
+    bpy.ops.object.mode_set(mode='OBJECT')
+    parity("lattice edit mode left", obj, lat, ref, mod)
 
 
 def test_errors():
@@ -249,7 +288,7 @@ def source_digest_mesh(me):
 
 def main():
     T.setup()
-    for fn in (test_lattice_edits, test_levels, test_frames_and_shape_keys, test_source_edit,
+    for fn in (test_lattice_edits, test_levels, test_frames_and_shape_keys, test_hook, test_edit_modes,
                test_errors, test_undo, test_duplicate, test_save_reload, test_apply_remove):
         T.run(fn.__name__, fn)
     T.finish()

@@ -236,3 +236,19 @@ def test_sample_data_is_small_and_sharp():
     order = np.lexsort((n[:, 2], n[:, 1], n[:, 0], cv))
     diff = (np.diff(cv[order]) == 0) & (np.abs(np.diff(n[order], axis=0)).max(1) > 0.5)
     assert diff.any()
+
+
+def test_deform_blender_lattice_and_error_report(core, tmp_path, capsys):
+    lat = tmp_path / "bl.json"
+    rc, _, err = run_main(["make-lattice", "--bbox-of", DATA / "vase.obj", "--kind", "blender",
+                           "--shape", 3, 3, 4, "--interpolation", "CATMULL_ROM", "--twist", 45, "-o", lat], capsys)
+    assert rc == 0, err
+    out = tmp_path / "o.obj"
+    rc, _, err = run_main(["deform", DATA / "vase.obj", "--lattice", lat, "-o", out, "--level", 2, "--errors"], capsys)
+    assert rc == 0, err
+    assert re.search(r"smoothffd: check .*geometry mean .* volume error", err), err
+    lattice = lattice_json.load_lattice(lat)
+    assert isinstance(lattice, core.BlenderLattice)
+    src = io.read_obj(DATA / "vase.obj").positions
+    want = lattice.evaluate(src)[0]
+    assert metrics.geometry_error(io.read_obj(out).positions[: len(src)], want).max < 1e-5

@@ -1,6 +1,7 @@
 #include "smoothffd/plan/fit_matrix.hpp"
 
 #include <cmath>
+#include <stdexcept>
 
 #include <Eigen/Dense>
 
@@ -43,6 +44,9 @@ FitTables build_fit_tables(int n) {
     for (int k = 0; k < ft.columns; ++k) {
       double v = X(r, k);
       ft.M_r[(size_t)r * ft.columns + k] = std::fabs(v) < 1e-12 ? 0.0 : v;
+      // The evaluators rely on this structure (stages.hpp, fit_patch_into).
+      if (r < 9 && k < fit && ft.M_r[(size_t)r * ft.columns + k] != 0.0)
+        throw std::logic_error("fit matrix: a boundary row depends on a fitting sample");
     }
   return ft;
 }

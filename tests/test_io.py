@@ -255,7 +255,7 @@ def test_write_rejects_bad_input(tmp_path):
         io.write_obj(tmp_path / "x.obj", pos, np.array([[0, 1, 3]]))
     with pytest.raises(ValueError, match="corner_normals"):
         io.write_obj(tmp_path / "x.obj", pos, np.array([[0, 1, 2]]), corner_normals=np.zeros((2, 3)))
-    with pytest.raises(ValueError, match="face_offsets"):
+    with pytest.raises(ValueError, match="triangles: face_offsets"):
         io.write_obj(tmp_path / "x.obj", pos, (np.array([0, 1, 2]), np.array([0, 2])))
 
 

@@ -421,11 +421,12 @@ def _write_rows(fh, template, values, chunk=200_000):
         fh.write((template * len(block)) % tuple(block.ravel().tolist()))
 
 
-def write_obj(path, positions, faces, corner_normals=None, uvs=None, *, header=None):
+def write_obj(path, positions, triangles, corner_normals=None, uvs=None, *, header=None):
     """Write a mesh to an OBJ file.
 
     positions       (V, 3)
-    faces           (T, 3) int triangles, or a ``(corner_vertices, face_offsets)`` polygon pair
+    triangles       (T, 3) int triangles, or a ``(corner_vertices, face_offsets)`` pair for
+                    polygons of any size
     corner_normals  (T, 3, 3) or (C, 3) per face corner, or None
     uvs             (T, 3, 2) or (C, 2) per face corner, or None
     header          optional comment line(s) written at the top
@@ -438,24 +439,25 @@ def write_obj(path, positions, faces, corner_normals=None, uvs=None, *, header=N
     pos = np.asarray(positions)
     if pos.ndim != 2 or pos.shape[1] != 3:
         raise ValueError(f"positions must have shape (V, 3), got {pos.shape}")
-    if isinstance(faces, (tuple, list)) and len(faces) == 2 and np.ndim(faces[0]) == 1:
-        cv = np.asarray(faces[0], dtype=np.int64)
-        offsets = np.asarray(faces[1], dtype=np.int64)
+    if isinstance(triangles, (tuple, list)) and len(triangles) == 2 and np.ndim(triangles[0]) == 1:
+        cv = np.asarray(triangles[0], dtype=np.int64)
+        offsets = np.asarray(triangles[1], dtype=np.int64)
         if offsets.ndim != 1 or len(offsets) < 1 or offsets[0] != 0 or offsets[-1] != len(cv):
-            raise ValueError("faces: face_offsets must start at 0 and end at len(corner_vertices)")
+            raise ValueError("triangles: face_offsets must start at 0 and end at len(corner_vertices)")
         if (np.diff(offsets) < 3).any():
-            raise ValueError("faces: every polygon needs at least 3 corners")
-        triangles = None
+            raise ValueError("triangles: every polygon needs at least 3 corners")
+        all_triangles = bool((np.diff(offsets) == 3).all())
     else:
-        tri = np.asarray(faces)
+        tri = np.asarray(triangles)
         if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer):
-            raise ValueError(f"faces must be (T, 3) integer triangles or (corner_vertices, face_offsets), got {tri.shape}")
+            raise ValueError("triangles: expected (T, 3) integers or a (corner_vertices, face_offsets) "
+                             f"pair, got shape {tri.shape}")
         cv = tri.astype(np.int64).ravel()
         offsets = np.arange(0, len(cv) + 1, 3, dtype=np.int64)
-        triangles = tri
+        all_triangles = True
     C = len(cv)
     if C and (cv.min() < 0 or cv.max() >= len(pos)):
-        raise ValueError(f"faces: vertex index out of range [0, {len(pos)})")
+        raise ValueError(f"triangles: vertex index out of range [0, {len(pos)})")
 
     cols = [cv + 1]
     parts = []  # (keyword, unique values) written before the faces
@@ -493,7 +495,7 @@ def write_obj(path, positions, faces, corner_normals=None, uvs=None, *, header=N
             stack, slot = np.stack([v, t, n], 1), "%d/%d/%d"
         if C == 0:
             return
-        if triangles is not None:
+        if all_triangles:  # one fixed template: the fastest path
             _write_rows(fh, f"f {slot} {slot} {slot}\n", stack.reshape(-1, 3 * stack.shape[1]))
         else:
             _write_polygon_rows(fh, stack, slot, offsets)

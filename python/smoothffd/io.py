@@ -104,17 +104,14 @@ def _parse_uniform_corners(joined, C):
     """
     first = joined.split(" ", 1)[0]
     k = first.count("/")
-    if k > 2 or joined.count("/") != k * C:
+    layout = first.translate(_DIGITS)  # the corner's skeleton: "", "/" or "//" (v/t/n, v//n)
+    if layout not in ("", "/", "//"):
         return None
-    if "//" in first:
-        if joined.count("//") != C:
-            return None
+    # Every corner must have exactly this skeleton: strip the digits and compare the rest.
+    if joined.translate(_DIGITS) != " ".join([layout] * C):
+        return None
+    if layout == "//":
         joined = joined.replace("//", "/0/")  # 0 is never a valid index: it marks "absent"
-    elif "//" in joined:
-        return None
-    # With no corner holding more than k slashes, the total k*C forces exactly k in each.
-    if k == 1 and re.search(r"/[^ /]*/", joined) or k == 2 and re.search(r"/[^ /]*/[^ /]*/", joined):
-        return None  # slash totals match but the corners mix layouts
     with warnings.catch_warnings():  # fromstring warns (and stops) on junk: we count instead
         warnings.simplefilter("ignore")
         vals = np.fromstring(joined.replace("/", " "), dtype=np.int64, sep=" ")
@@ -164,7 +161,10 @@ def read_obj(path) -> ObjData:
     return data
 
 
-_FAST_BAIL = re.compile(r"\n[ \t]|\n(?:v|vt|vn|f)[ \t]*\n")
+# Lines the regexes of the fast path would skip silently: indented lines and bare keywords.
+# (A keyword followed by blanks only is caught later by its token count.)
+_FAST_BAIL = ("\n ", "\n\t", "\nv\n", "\nvt\n", "\nvn\n", "\nf\n")
+_DIGITS = str.maketrans("", "", "0123456789-")
 
 
 def _read_fast(text, path):
@@ -174,7 +174,7 @@ def _read_fast(text, path):
     if "\r" in text:
         text = text.replace("\r\n", "\n").replace("\r", "\n")
     text = "\n" + text + "\n"
-    if _FAST_BAIL.search(text):  # indented lines or keywords without data
+    if any(b in text for b in _FAST_BAIL):
         return None
 
     def grab(kw, ncols, pad=None):

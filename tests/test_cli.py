@@ -124,6 +124,7 @@ def test_info_on_mesh_and_lattice(capsys):
     rc, out, _ = run_main(["info", DATA / "vase.obj"], capsys)
     assert rc == 0
     assert "vertices    480" in out and "956 triangles" in out
+    assert "split at 96 vertices" in out  # 4 sharp rings (rim x2, bottom, floor) x 24
     assert "0 boundary, 0 non-manifold, 0 misoriented" in out and "volume" in out
     rc, out, _ = run_main(["info", DATA / "vase_twist.json"], capsys)
     assert rc == 0 and "bspline 4x4x5" in out

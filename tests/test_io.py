@@ -256,6 +256,10 @@ def test_write_rejects_bad_input(tmp_path):
         io.write_obj(tmp_path / "x.obj", pos, np.array([[0, 1, 3]]))
     with pytest.raises(ValueError, match="corner_normals"):
         io.write_obj(tmp_path / "x.obj", pos, np.array([[0, 1, 2]]), corner_normals=np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="not finite"):
+        io.write_obj(tmp_path / "x.obj", np.full((3, 3), np.nan), np.array([[0, 1, 2]]))
+    with pytest.raises(ValueError, match="uvs: some values are not finite"):
+        io.write_obj(tmp_path / "x.obj", pos, np.array([[0, 1, 2]]), uvs=np.full((3, 2), np.inf))
     with pytest.raises(ValueError, match="triangles: face_offsets"):
         io.write_obj(tmp_path / "x.obj", pos, (np.array([0, 1, 2]), np.array([0, 2])))
 

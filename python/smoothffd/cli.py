@@ -252,7 +252,12 @@ def _describe_obj(path):
              f"largest {int(sizes.max()) if len(sizes) else 0} corners)",
              f"corners     {len(d.corner_vertices):,}; fan triangulation: {int((sizes - 2).sum()):,} triangles"]
     if d.corner_normals is not None:
-        lines.append(f"normals     per corner, {len(objio._dedupe(d.corner_normals)[0]):,} distinct")
+        # a vertex is split (sharp) where its corners carry different normals
+        rows = np.column_stack([d.corner_vertices.astype(np.float64), d.corner_normals])
+        uniq, _ = objio._dedupe(rows)
+        per_vertex = np.bincount(uniq[:, 0].astype(np.int64), minlength=len(d.positions))
+        lines.append(f"normals     per corner, {len(objio._dedupe(d.corner_normals)[0]):,} distinct; "
+                     f"split at {int((per_vertex > 1).sum()):,} vertices")
     else:
         lines.append("normals     none (smooth vertex normals will be computed)")
     lines.append(f"uvs         {'per corner' if d.uvs is not None else 'none'}")

@@ -439,6 +439,8 @@ def write_obj(path, positions, triangles, corner_normals=None, uvs=None, *, head
     pos = np.asarray(positions)
     if pos.ndim != 2 or pos.shape[1] != 3:
         raise ValueError(f"positions must have shape (V, 3), got {pos.shape}")
+    if not np.isfinite(pos).all():  # "nan" in an OBJ file would not read back
+        raise ValueError(f"positions: {int((~np.isfinite(pos)).any(axis=1).sum())} vertices are not finite")
     if isinstance(triangles, (tuple, list)) and len(triangles) == 2 and np.ndim(triangles[0]) == 1:
         cv = np.asarray(triangles[0], dtype=np.int64)
         offsets = np.asarray(triangles[1], dtype=np.int64)
@@ -468,6 +470,8 @@ def write_obj(path, positions, triangles, corner_normals=None, uvs=None, *, head
         a = np.asarray(arr)
         if a.size != C * k:
             raise ValueError(f"{name} must have {C} corners x {k} values, got shape {a.shape}")
+        if not np.isfinite(a).all():
+            raise ValueError(f"{name}: some values are not finite")
         uniq, inv = _dedupe_corners(a.reshape(C, k), cv, len(pos))
         cols.append(inv + 1)
         parts.append((name, uniq))

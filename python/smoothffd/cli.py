@@ -142,10 +142,11 @@ def make_lattice_doc(box_min, box_max, shape, degree=(2, 2, 2), kind="bspline", 
     box_min, box_max = np.asarray(box_min, float), np.asarray(box_max, float)
     if kind == "bspline":
         rest = greville_grid(box_min, box_max, shape, degree)
+        cp = deform_points(rest, box_min, box_max, mode, amount, axis)
         doc = {"format": lattice_json.FORMAT, "version": lattice_json.VERSION, "kind": "bspline",
                "shape": list(shape), "degree": list(degree), "knots": None,
                "box_min": box_min.tolist(), "box_max": box_max.tolist(),
-               "control_points": deform_points(rest, box_min, box_max, mode, amount, axis).reshape(-1, 3).tolist()}
+               "control_points": cp.reshape(-1, 3).tolist()}
     elif kind == "blender":
         rest = lattice_json.blender_rest_grid(shape)
         # lattice space [-0.5, 0.5]^3 -> the box; a one-point axis sits at the box centre
@@ -183,8 +184,9 @@ def cmd_deform(args, progress):
     with progress.stage("read") as note:
         mesh = objio.read_obj_mesh(args.input)
         lattice = lattice_json.load_lattice(args.lattice)
-        note["detail"] = (f"{args.input}: {mesh.vertex_count:,} vertices, {mesh.face_count:,} faces; "
-                          f"{type(lattice).__name__} {'x'.join(map(str, np.shape(lattice.control_values())[:3]))}")
+        shape = "x".join(map(str, np.shape(lattice.control_values())[:3]))
+        note["detail"] = (f"{args.input}: {mesh.vertex_count:,} vertices, "
+                          f"{mesh.face_count:,} faces; {type(lattice).__name__} {shape}")
     with progress.stage("plan") as note:
         deformer = smoothffd.Deformer(mesh, lattice, level=args.level, device=args.device,
                                       threads=args.threads)
@@ -194,18 +196,19 @@ def cmd_deform(args, progress):
         note["detail"] = f"{len(res.triangles):,} triangles, {len(res.positions):,} vertices"
     with progress.stage("write") as note:
         _ensure_parent(args.output)
-        objio.write_result(args.output, res,
-                           header=f"smoothffd deform {os.path.basename(args.input)} "
-                                  f"--lattice {os.path.basename(args.lattice)} --level {args.level}")
+        header = (f"smoothffd deform {os.path.basename(args.input)} "
+                  f"--lattice {os.path.basename(args.lattice)} --level {args.level}")
+        objio.write_result(args.output, res, header=header)
         note["detail"] = f"{args.output}, {os.path.getsize(args.output) / 2**20:.1f} MiB"
     if args.errors:
         from . import metrics
 
         with progress.stage("check") as note:
             e = metrics.reference_errors(res, lattice)
-            note["detail"] = (f"vs exact FFD of the flat input: geometry mean {e['geometry'].mean:.3g} "
-                              f"max {e['geometry'].max:.3g}; normal mean {e['normal'].mean:.3g} "
-                              f"max {e['normal'].max:.3g} deg; volume error {e['volume_error']:.3g}")
+            g, n = e["geometry"], e["normal"]
+            note["detail"] = (f"vs exact FFD of the flat input: geometry mean {g.mean:.3g} "
+                              f"max {g.max:.3g}; normal mean {n.mean:.3g} max {n.max:.3g} deg; "
+                              f"volume error {e['volume_error']:.3g}")
     if args.stats:
         stats = dict(res.stats)
         stats["cli_seconds"] = progress.times
@@ -236,7 +239,8 @@ def cmd_make_lattice(args, progress):
     with progress.stage("write") as note:
         _ensure_parent(args.output)
         lattice_json.save_lattice(args.output, doc)
-        note["detail"] = f"{args.output}: {doc['kind']} {'x'.join(map(str, args.shape))}, {doc['name']}"
+        shape = "x".join(map(str, args.shape))
+        note["detail"] = f"{args.output}: {doc['kind']} {shape}, {doc['name']}"
     return 0
 
 
@@ -250,31 +254,36 @@ def _describe_obj(path):
              f"faces       {len(sizes):,} ({int((sizes == 3).sum()):,} triangles, "
              f"{int((sizes == 4).sum()):,} quads, {int((sizes > 4).sum()):,} n-gons, "
              f"largest {int(sizes.max()) if len(sizes) else 0} corners)",
-             f"corners     {len(d.corner_vertices):,}; fan triangulation: {int((sizes - 2).sum()):,} triangles"]
+             f"corners     {len(d.corner_vertices):,}; "
+             f"fan triangulation: {int((sizes - 2).sum()):,} triangles"]
     if d.corner_normals is not None:
         # a vertex is split (sharp) where its corners carry different normals
         rows = np.column_stack([d.corner_vertices.astype(np.float64), d.corner_normals])
         uniq, _ = objio._dedupe(rows)
         per_vertex = np.bincount(uniq[:, 0].astype(np.int64), minlength=len(d.positions))
-        lines.append(f"normals     per corner, {len(objio._dedupe(d.corner_normals)[0]):,} distinct; "
+        distinct = len(objio._dedupe(d.corner_normals)[0])
+        lines.append(f"normals     per corner, {distinct:,} distinct; "
                      f"split at {int((per_vertex > 1).sum()):,} vertices")
     else:
         lines.append("normals     none (smooth vertex normals will be computed)")
     lines.append(f"uvs         {'per corner' if d.uvs is not None else 'none'}")
     if len(d.positions):
         lo, hi = d.positions.min(axis=0), d.positions.max(axis=0)
-        lines.append(f"bbox        min {np.array2string(lo, precision=4)} max {np.array2string(hi, precision=4)}")
+        lines.append(f"bbox        min {np.array2string(lo, precision=4)} "
+                     f"max {np.array2string(hi, precision=4)}")
     if len(sizes):
         # fan triangles share the polygons' edges, so the edge report is the polygon mesh's
-        first = np.repeat(d.face_offsets[:-1], sizes - 2)
-        k = np.arange(int((sizes - 2).sum())) - np.repeat(np.cumsum(sizes - 2) - (sizes - 2), sizes - 2)
+        fan = sizes - 2  # triangle k of a polygon's fan: corners 0, k+1, k+2
+        first = np.repeat(d.face_offsets[:-1], fan)
+        k = np.arange(int(fan.sum())) - np.repeat(np.cumsum(fan) - fan, fan)
         tri = np.stack([d.corner_vertices[first], d.corner_vertices[first + k + 1],
                         d.corner_vertices[first + k + 2]], axis=1)
         r = metrics.edge_report(tri)
-        lines.append(f"edges       {r.edges:,}: {r.boundary:,} boundary, {r.non_manifold:,} non-manifold, "
-                     f"{r.misoriented:,} misoriented")
+        lines.append(f"edges       {r.edges:,}: {r.boundary:,} boundary, "
+                     f"{r.non_manifold:,} non-manifold, {r.misoriented:,} misoriented")
         if r.watertight:
-            lines.append(f"volume      {metrics.signed_volume(d.positions, tri):.6g} (closed, oriented)")
+            vol = metrics.signed_volume(d.positions, tri)
+            lines.append(f"volume      {vol:.6g} (closed, oriented)")
     return lines
 
 
@@ -289,7 +298,8 @@ def _describe_lattice(path):
              + (f" ({doc['name']})" if doc.get("name") else "")]
     if kind == "bspline":
         cp = kw["control_points"].reshape(-1, 3)
-        lines.append(f"degree      {list(kw['degree'])}, knots {'open uniform' if kw['knots'] is None else 'custom'}")
+        knots = "open uniform" if kw["knots"] is None else "custom"
+        lines.append(f"degree      {list(kw['degree'])}, knots {knots}")
         if kw["box_min"] is not None:
             lines.append(f"box         {kw['box_min'].tolist()} .. {kw['box_max'].tolist()}")
         lines.append(f"points      {len(cp)}, bbox {cp.min(0).tolist()} .. {cp.max(0).tolist()}")
@@ -301,45 +311,54 @@ def _describe_lattice(path):
 
 
 def cmd_info(args, progress):
-    lines = _describe_lattice(args.input) if args.input.lower().endswith(".json") else _describe_obj(args.input)
+    is_json = args.input.lower().endswith(".json")
+    lines = _describe_lattice(args.input) if is_json else _describe_obj(args.input)
     print("\n".join(lines))
     return 0
 
 
 def build_parser():
-    p = argparse.ArgumentParser(prog="python3 -m smoothffd",
-                                description="Smooth free-form deformation of polygon meshes (Cui & Feng 2015).")
+    p = argparse.ArgumentParser(
+        prog="python3 -m smoothffd",
+        description="Smooth free-form deformation of polygon meshes (Cui & Feng 2015).")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     d = sub.add_parser("deform", help="deform an OBJ mesh with a lattice JSON")
     d.add_argument("input", metavar="IN.obj")
     d.add_argument("--lattice", "-l", required=True, metavar="L.json")
     d.add_argument("--output", "-o", required=True, metavar="OUT.obj")
-    d.add_argument("--level", type=int, default=10, help="tessellation level L (L^2 triangles per patch; default 10)")
+    d.add_argument("--level", type=int, default=10,
+                   help="tessellation level L (L^2 triangles per patch; default 10)")
     d.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
     d.add_argument("--threads", type=int, default=0, help="CPU threads (0: all cores)")
-    d.add_argument("--stats", action="store_true", help="print the result's stats as JSON on stdout")
+    d.add_argument("--stats", action="store_true",
+                   help="print the result's stats as JSON on stdout")
     d.add_argument("--errors", action="store_true",
                    help="also report geometry/normal/volume errors against exact FFD of the flat "
                         "input (meaningful for flat-faced meshes, as in the paper's cube test)")
     d.add_argument("--quiet", "-q", action="store_true", help="no progress lines")
     d.set_defaults(func=cmd_deform)
 
-    m = sub.add_parser("make-lattice", help="write an example lattice JSON (identity around a box, then a deformation)")
+    m = sub.add_parser("make-lattice", help="write an example lattice JSON (identity around a "
+                                             "box, then a deformation)")
     src = m.add_mutually_exclusive_group(required=True)
-    src.add_argument("--bbox-of", metavar="IN.obj", help="use this mesh's bounding box (plus --margin)")
+    src.add_argument("--bbox-of", metavar="IN.obj",
+                     help="use this mesh's bounding box (plus --margin)")
     src.add_argument("--box", type=float, nargs=6, metavar=("X0", "Y0", "Z0", "X1", "Y1", "Z1"))
-    m.add_argument("--margin", type=float, default=0.05, help="box padding, fraction of the largest extent (default 0.05)")
+    m.add_argument("--margin", type=float, default=0.05,
+                   help="box padding, fraction of the largest extent (default 0.05)")
     m.add_argument("--shape", type=int, nargs=3, default=[5, 5, 5], metavar=("NU", "NV", "NW"))
     m.add_argument("--degree", type=int, nargs=3, default=[2, 2, 2], metavar=("DU", "DV", "DW"))
     m.add_argument("--kind", choices=("bspline", "blender"), default="bspline")
     m.add_argument("--interpolation", choices=lattice_json.INTERPOLATIONS, default="BSPLINE",
                    help="Blender lattice interpolation (with --kind blender)")
-    m.add_argument("--axis", choices=("x", "y", "z"), default="z", help="axis of twist/bend/bulge (default z)")
+    m.add_argument("--axis", choices=("x", "y", "z"), default="z",
+                   help="axis of twist/bend/bulge (default z)")
     how = m.add_mutually_exclusive_group()
     how.add_argument("--twist", type=float, metavar="DEG", help="twist by DEG degrees end to end")
     how.add_argument("--bend", type=float, metavar="DEG", help="bend by DEG degrees end to end")
-    how.add_argument("--bulge", type=float, metavar="F", help="scale the middle cross-section by 1 + F")
+    how.add_argument("--bulge", type=float, metavar="F",
+                     help="scale the middle cross-section by 1 + F")
     m.add_argument("--output", "-o", required=True, metavar="L.json")
     m.add_argument("--quiet", "-q", action="store_true")
     m.set_defaults(func=cmd_make_lattice)

@@ -61,7 +61,8 @@ def _floats(tokens, lines, per_line, path, what):
             try:
                 float(tok)
             except ValueError:
-                raise _error(path, lines[i // per_line], f"non-numeric {what} value {tok!r}") from None
+                msg = f"non-numeric {what} value {tok!r}"
+                raise _error(path, lines[i // per_line], msg) from None
         raise  # pragma: no cover - numpy and float() disagree
     bad = ~np.isfinite(arr)
     if bad.any():
@@ -135,7 +136,8 @@ def _parse_corners_slow(toks, corner_line, path):
             try:
                 out[c, s] = int(p)
             except ValueError:
-                raise _error(path, corner_line(c), f"non-integer index in face corner {tok!r}") from None
+                msg = f"non-integer index in face corner {tok!r}"
+                raise _error(path, corner_line(c), msg) from None
     return out
 
 
@@ -234,7 +236,8 @@ def _finish(path, positions, vt, vn, idx, present, face_offsets):
         else:
             uvs = np.zeros((len(corner_vertices), 2))
             uvs[t_has] = vt[idx[t_has, 1]]
-            warnings.warn(f"{path}: {int((~t_has).sum())} face corners have no texture coordinate; using (0, 0)")
+            warnings.warn(f"{path}: {int((~t_has).sum())} face corners have no texture "
+                          "coordinate; using (0, 0)")
     normals = None
     n_has = present[:, 2]
     if len(n_has) and n_has.all():
@@ -313,7 +316,8 @@ def _read_slow(text, path):
     present = raw != 0
     if len(raw) and not present[:, 0].all():
         c = int(np.flatnonzero(~present[:, 0])[0])
-        raise _error(path, corner_line(c), f"vertex index 0 in corner {toks[c]!r} (OBJ indices start at 1)")
+        raise _error(path, corner_line(c),
+                     f"vertex index 0 in corner {toks[c]!r} (OBJ indices start at 1)")
     for s in range(3):
         so_far = counts[s][corner_face]
         # Positive indices may refer forward (many writers rely on it); negative ones count
@@ -440,20 +444,22 @@ def write_obj(path, positions, triangles, corner_normals=None, uvs=None, *, head
     if pos.ndim != 2 or pos.shape[1] != 3:
         raise ValueError(f"positions must have shape (V, 3), got {pos.shape}")
     if not np.isfinite(pos).all():  # "nan" in an OBJ file would not read back
-        raise ValueError(f"positions: {int((~np.isfinite(pos)).any(axis=1).sum())} vertices are not finite")
+        bad = int((~np.isfinite(pos)).any(axis=1).sum())
+        raise ValueError(f"positions: {bad} vertices are not finite")
     if isinstance(triangles, (tuple, list)) and len(triangles) == 2 and np.ndim(triangles[0]) == 1:
         cv = np.asarray(triangles[0], dtype=np.int64)
         offsets = np.asarray(triangles[1], dtype=np.int64)
         if offsets.ndim != 1 or len(offsets) < 1 or offsets[0] != 0 or offsets[-1] != len(cv):
-            raise ValueError("triangles: face_offsets must start at 0 and end at len(corner_vertices)")
+            raise ValueError("triangles: face_offsets must start at 0 and end at "
+                             "len(corner_vertices)")
         if (np.diff(offsets) < 3).any():
             raise ValueError("triangles: every polygon needs at least 3 corners")
         all_triangles = bool((np.diff(offsets) == 3).all())
     else:
         tri = np.asarray(triangles)
         if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer):
-            raise ValueError("triangles: expected (T, 3) integers or a (corner_vertices, face_offsets) "
-                             f"pair, got shape {tri.shape}")
+            raise ValueError("triangles: expected (T, 3) integers or a (corner_vertices, "
+                             f"face_offsets) pair, got shape {tri.shape}")
         cv = tri.astype(np.int64).ravel()
         offsets = np.arange(0, len(cv) + 1, 3, dtype=np.int64)
         all_triangles = True

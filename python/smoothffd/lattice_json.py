@@ -26,7 +26,8 @@ INTERPOLATIONS = ("LINEAR", "CARDINAL", "CATMULL_ROM", "BSPLINE")
 _COMMON = {"format", "version", "kind", "shape", "name", "comment"}
 _KEYS = {
     "bspline": _COMMON | {"degree", "knots", "box_min", "box_max", "control_points"},
-    "blender": _COMMON | {"rest_points", "points", "interpolation", "lattice_to_object", "strength"},
+    "blender": _COMMON | {"rest_points", "points", "interpolation", "lattice_to_object",
+                          "strength"},
 }
 
 
@@ -116,7 +117,8 @@ def parse_lattice(doc, source=None):
         degree = _int_triple(doc, "degree", err, 1, 5, default=[2, 2, 2])
         for a in range(3):
             if shape[a] < degree[a] + 1:
-                raise err(f"shape[{a}]", f"degree {degree[a]} needs at least {degree[a] + 1} points, got {shape[a]}")
+                raise err(f"shape[{a}]", f"degree {degree[a]} needs at least {degree[a] + 1} "
+                                         f"points, got {shape[a]}")
         knots = doc.get("knots")
         if knots is not None:
             if not isinstance(knots, list) or len(knots) != 3:
@@ -127,7 +129,8 @@ def parse_lattice(doc, source=None):
                 if not isinstance(k, list) or not all(_is_number(v) for v in k):
                     raise err(f"knots[{a}]", "expected a list of finite numbers")
                 if len(k) != want:
-                    raise err(f"knots[{a}]", f"expected {want} values (points + degree + 1), got {len(k)}")
+                    raise err(f"knots[{a}]",
+                              f"expected {want} values (points + degree + 1), got {len(k)}")
                 arr = np.array(k, dtype=np.float64)
                 if (np.diff(arr) < 0).any():
                     raise err(f"knots[{a}]", "must be non-decreasing")
@@ -138,9 +141,11 @@ def parse_lattice(doc, source=None):
         box_min = _vector(doc, "box_min", err, optional=True)
         box_max = _vector(doc, "box_max", err, optional=True)
         if box_min is not None and box_max is not None and (box_max <= box_min).any():
-            raise err("box_max", f"must exceed box_min on every axis ({box_min.tolist()} .. {box_max.tolist()})")
+            raise err("box_max", "must exceed box_min on every axis "
+                                 f"({box_min.tolist()} .. {box_max.tolist()})")
         cp = _points(doc, "control_points", err, shape)
-        return kind, dict(control_points=cp, degree=degree, knots=knots, box_min=box_min, box_max=box_max)
+        return kind, dict(control_points=cp, degree=degree, knots=knots, box_min=box_min,
+                          box_max=box_max)
 
     shape = _int_triple(doc, "shape", err, 1, 64)  # Blender's own limit per axis
     rest = doc.get("rest_points")
@@ -149,14 +154,18 @@ def parse_lattice(doc, source=None):
     interp = doc.get("interpolation", "BSPLINE")
     if isinstance(interp, str):
         interp = [interp] * 3
-    if not isinstance(interp, list) or len(interp) != 3 or any(t not in INTERPOLATIONS for t in interp):
-        raise err("interpolation", f"expected a name or 3 names from {list(INTERPOLATIONS)}, got {doc.get('interpolation')!r}")
+    if (not isinstance(interp, list) or len(interp) != 3
+            or any(t not in INTERPOLATIONS for t in interp)):
+        raise err("interpolation", f"expected a name or 3 names from {list(INTERPOLATIONS)}, "
+                                   f"got {doc.get('interpolation')!r}")
     m = doc.get("lattice_to_object")
     if m is None:
         m = np.eye(4)
     else:
-        if (not isinstance(m, list) or len(m) != 4
-                or not all(isinstance(r, list) and len(r) == 4 and all(_is_number(v) for v in r) for r in m)):
+        def row_ok(r):
+            return isinstance(r, list) and len(r) == 4 and all(_is_number(v) for v in r)
+
+        if not isinstance(m, list) or len(m) != 4 or not all(row_ok(r) for r in m):
             raise err("lattice_to_object", "expected a 4x4 matrix as 4 rows of 4 finite numbers")
         m = np.array(m, dtype=np.float64)
         if not np.allclose(m[3], [0, 0, 0, 1]):
@@ -204,7 +213,7 @@ def lattice_to_dict(lattice, name=None):
         doc = {"format": FORMAT, "version": VERSION, "kind": "blender",
                "shape": [int(n) for n in pts.shape[:3]],
                "interpolation": [str(t) for t in lattice.interpolation],
-               "lattice_to_object": np.asarray(lattice.lattice_to_object, dtype=np.float64).tolist(),
+               "lattice_to_object": np.asarray(lattice.lattice_to_object, float).tolist(),
                "strength": float(lattice.strength),
                "rest_points": _rows(lattice.rest_points), "points": _rows(pts)}
     elif hasattr(lattice, "control_points"):
@@ -222,7 +231,8 @@ def lattice_to_dict(lattice, name=None):
                "box_max": vec(getattr(lattice, "box_max", None)),
                "control_points": _rows(cp)}
     else:
-        raise TypeError(f"lattice: expected a BSplineLattice or BlenderLattice, got {type(lattice).__name__}")
+        raise TypeError("lattice: expected a BSplineLattice or BlenderLattice, "
+                        f"got {type(lattice).__name__}")
     if name:
         doc["name"] = str(name)
     return doc

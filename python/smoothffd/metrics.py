@@ -123,9 +123,11 @@ def edge_report(triangles):
     key = lo * n + hi  # one int64 per undirected edge
     uniq, inv, count = np.unique(key, return_inverse=True, return_counts=True)
     # In a consistently wound closed surface each edge appears once as (a, b), once as (b, a).
-    forward = np.bincount(inv.ravel(), weights=(directed[:, 0] < directed[:, 1]), minlength=len(uniq))
+    forward = np.bincount(inv.ravel(), weights=(directed[:, 0] < directed[:, 1]),
+                          minlength=len(uniq))
     misoriented = int(((count == 2) & (forward != 1)).sum())
-    return EdgeReport(len(uniq), int((count == 1).sum()), int((count >= 3).sum()), misoriented, degenerate)
+    return EdgeReport(len(uniq), int((count == 1).sum()), int((count >= 3).sum()), misoriented,
+                      degenerate)
 
 
 def is_watertight(triangles):

@@ -270,6 +270,10 @@ def test_read_obj_mesh_builds_core_mesh(tmp_path):
 
     mesh = io.read_obj_mesh(write_text(tmp_path, CUBE_QUADS))
     assert isinstance(mesh, smoothffd.Mesh)
+    assert mesh.vertex_count == 8 and mesh.face_count == 6
+    np.testing.assert_array_equal(mesh.face_offsets, [0, 4, 8, 12, 16, 20, 24])
+    np.testing.assert_allclose(mesh.corner_normals[4], [0, 0, 1])
+    np.testing.assert_allclose(mesh.uvs[2], [1, 1])
 
 
 @pytest.mark.parametrize("layout", ["v", "v/t", "v//n", "v/t/n", "v//n|v/t/n", "v|v/t"])

@@ -41,6 +41,13 @@ class ObjData(NamedTuple):
         """The ``(corner_vertices, face_offsets)`` pair that ``smoothffd.Mesh`` accepts."""
         return (self.corner_vertices, self.face_offsets)
 
+    def to_mesh(self, vertex_weights=None):
+        """``smoothffd.Mesh(positions, faces, corner_normals, uvs)`` (needs the native core)."""
+        from . import Mesh  # lazy: io.py must import without the native core
+
+        return Mesh(self.positions, self.faces, self.corner_normals, self.uvs,
+                    vertex_weights=vertex_weights)
+
 
 def _error(path, lineno, msg):
     return ValueError(f"{path}:{lineno}: {msg}")
@@ -337,10 +344,7 @@ def _read_slow(text, path):
 
 def read_obj_mesh(path):
     """Read an OBJ file into a ``smoothffd.Mesh`` (polygons, split normals and UVs kept)."""
-    from . import Mesh  # lazy: io.py must import without the native core
-
-    d = read_obj(path)
-    return Mesh(d.positions, (d.corner_vertices, d.face_offsets), d.corner_normals, d.uvs)
+    return read_obj(path).to_mesh()
 
 
 # ----------------------------------------------------------------------------------------

@@ -565,7 +565,13 @@ def smooth_ffd_errors(result, input_face_normals, lattice_eval):
     exact, _ = lattice_eval(rest)
     gerr = np.linalg.norm(pos - np.asarray(exact, dtype=np.float64), axis=1)
     fn = np.asarray(input_face_normals, dtype=np.float64)[fidx]  # (T, 3)
-    crest = rest[tris].reshape(-1, 3)
+    # Each corner's exact normal is taken from the side of its own triangle: the sample point
+    # is nudged (1e-6 of the way) towards the triangle's rest centroid, so corners on a knot
+    # plane where J jumps (LINEAR, degree 1, repeated knots) or on the box boundary use the
+    # Jacobian of the piece the triangle lies in.
+    corners = rest[tris]  # (T, 3, 3)
+    centroid = corners.mean(axis=1, keepdims=True)
+    crest = (corners + 1e-6 * (centroid - corners)).reshape(-1, 3)
     _, nex = exact_at(crest, np.repeat(fn, 3, axis=0), lattice_eval)
     got = np.asarray(result.corner_normals, dtype=np.float64).reshape(-1, 3)
     got = got / np.linalg.norm(got, axis=1, keepdims=True)

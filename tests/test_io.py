@@ -306,3 +306,13 @@ def test_fast_path_matches_slow_path_on_random_polygon_files(tmp_path, layout):
         else:
             np.testing.assert_array_equal(a, b)
     assert fast.face_offsets[-1] == sizes.sum()
+
+
+def test_gzip_round_trip(tmp_path):
+    pos, tri, cn, uv = random_triangle_mesh(np.random.default_rng(7))
+    p = tmp_path / "m.obj.gz"
+    io.write_obj(p, pos, tri, cn, uv)
+    assert p.read_bytes()[:2] == b"\x1f\x8b"  # gzip magic
+    d = io.read_obj(p)
+    np.testing.assert_array_equal(d.positions.astype(np.float32), pos)
+    np.testing.assert_array_equal(d.uvs.astype(np.float32), uv.reshape(-1, 2))

@@ -432,6 +432,20 @@ def test_bspline_control_values_are_offsets_from_greville(degree):
     np.testing.assert_allclose(lat.control_values(), kwargs["control_points"] - g, atol=1e-12)
 
 
+def test_bspline_default_box_is_control_point_bounds():
+    rng = np.random.default_rng(15)
+    kwargs, p_in, p_out, scale = random_bspline_case(rng, (2, 1, 3), "clamped")
+    cp = kwargs["control_points"]
+    flat = cp.reshape(-1, 3)
+    lat = smoothffd.BSplineLattice(cp, kwargs["degree"], kwargs["knots"])
+    rlat = ref.BSplineReference(cp, kwargs["degree"], kwargs["knots"], flat.min(0), flat.max(0))
+    for p in (p_in, p_out):
+        pos, jac = lat.evaluate(p)
+        rpos, rjac = rlat.evaluate(p)
+        assert_positions(pos, rpos, scale)
+        assert_jacobians(jac, rjac)
+
+
 def test_bspline_outside_continues_nearest_box_displacement():
     rng = np.random.default_rng(13)
     kwargs, p_in, p_out, scale = random_bspline_case(rng, (2, 3, 2), "default")

@@ -59,7 +59,7 @@ def cpu_time(plan, vals, reps):
     return float(np.median(ts)), stages[int(np.argsort(ts)[len(ts) // 2])], ev.threads
 
 
-def gpu_case(name, P, F, N, lat, level, iters, cpu_reps, log):
+def gpu_case(name, P, F, N, lat, level, iters, cpu_reps, log, variants=False):
     mesh = smoothffd.Mesh(P, F, corner_normals=N[F.reshape(-1)])
     t0 = time.perf_counter()
     plan = smoothffd.Deformer(mesh, lat, level=level, device="cpu").plan
@@ -75,6 +75,14 @@ def gpu_case(name, P, F, N, lat, level, iters, cpu_reps, log):
         ev.path = path
         row[path] = ev.benchmark(vals, iters)
         log(f"  {name} L={level} {path}: {row[path]}")
+    if variants:
+        for lanes in ("1", "8"):
+            os.environ["SMOOTHFFD_FUSED_LANES"] = lanes
+            ev2 = _core.CudaEvaluator(plan, "fused")
+            row[f"fused_lanes{lanes}"] = ev2.benchmark(vals, iters)
+            log(f"  {name} L={level} fused lanes={lanes}: {row[f'fused_lanes{lanes}']}")
+            del ev2
+        os.environ.pop("SMOOTHFFD_FUSED_LANES")
     # Whole frame with the copy back to numpy (corner normals built on the device).
     ev.path = "fused"
     ev.evaluate(vals)
@@ -166,7 +174,7 @@ def main():
     levels = (10,) if args.quick else (4, 10, 12, 14, 16)
     plans = {}
     for L in levels:
-        row, plan = gpu_case("W1", P, F, N, lat, L, args.iters, 3 if L in (4, 10, 16) else 0, log)
+        row, plan = gpu_case("W1", P, F, N, lat, L, args.iters, 3 if L in (4, 10, 16) else 0, log, L == 10)
         result["w1"].append(row)
         plans[L] = plan
     # Paper Table 5: smooth FFD vs uniform upsampling (PN + every sample deformed) at the same

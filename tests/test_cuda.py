@@ -135,7 +135,7 @@ def check(mesh, lat, level, path):
     da = angles(ng.astype(np.float64), nc.astype(np.float64)).max()
     assert dp <= 1e-5, f"positions differ by {dp:.2e} of the lattice size"
     assert da <= 1e-4, f"normals differ by {da:.2e} rad"
-    assert times["device_total"] >= 0 and "copy_back" in times
+    assert times["copy_back"] >= 0 and times["sampling"] >= 0
     # The device-resident compact output agrees with what came back.
     ev.poison()
     t = ev.evaluate_device(vals)

@@ -9,7 +9,6 @@
 #include <algorithm>
 #include <cstdlib>
 #include <cstring>
-#include <sstream>
 
 #include "smoothffd/eval/stages.hpp"
 #include "smoothffd/plan/tessellation.hpp"
@@ -19,11 +18,12 @@ namespace sffd {
 namespace {
 
 [[noreturn]] void throw_cuda(cudaError_t err, const char* what, const char* file, int line) {
-  std::ostringstream os;
-  os << "CUDA error in " << what << ": " << cudaGetErrorName(err) << " (" << cudaGetErrorString(err)
-     << ") at " << file << ":" << line;
-  if (err == cudaErrorMemoryAllocation) throw CudaOutOfMemory("out of GPU memory: " + os.str());
-  throw CudaError(os.str());
+  // No iostreams here: in a module with a statically linked libstdc++ (the device image's
+  // GCC) ostream formatting crashed; plain string concatenation does not need locales.
+  std::string msg = std::string("CUDA error in ") + what + ": " + cudaGetErrorName(err) + " (" +
+                    cudaGetErrorString(err) + ") at " + file + ":" + std::to_string(line);
+  if (err == cudaErrorMemoryAllocation) throw CudaOutOfMemory("out of GPU memory: " + msg);
+  throw CudaError(msg);
 }
 
 #define CK(expr)                                                     \
@@ -156,27 +156,87 @@ __global__ void k_edge(PlanView pv, FrameView fv) {
 
 // ---------------------------------------------------------------- fused path
 
-// One thread a patch fits it into shared memory; then the block tessellates its patches, one
-// thread a (patch, grid point).
-template <int PB>
-__global__ void __launch_bounds__(PB) k_fit_tessellate(PlanView pv, FrameView fv, const GridInfo* __restrict__ gi,
-                                                     const uint8_t* __restrict__ owns, float* __restrict__ grid_normals) {
+// LANES threads a patch fit it (columns split among them, partial sums combined by warp
+// shuffles) into shared memory; then the block tessellates its PB patches, one thread a
+// (patch, grid point), straight from shared memory.
+template <int PB, int LANES>
+__global__ void __launch_bounds__(PB* LANES) k_fit_tessellate(PlanView pv, FrameView fv, const GridInfo* __restrict__ gi,
+                                                            const uint8_t* __restrict__ owns,
+                                                            float* __restrict__ grid_normals) {
+  static_assert(32 % LANES == 0, "lanes of a patch must share a warp");
   __shared__ float ctrl[PB][2][30];
+  __shared__ int sedge[PB][3];
+  __shared__ uint8_t sflags[PB];  // bits 0-2: owns edge k; bits 3-5: edge k reversed
   const int base = blockIdx.x * PB;
-  const int p = base + threadIdx.x;
-  if (p < pv.patches) fit_patch_into(pv, fv, p, ctrl[threadIdx.x][0], ctrl[threadIdx.x][1]);
+  const int lp = threadIdx.x / LANES, lane = threadIdx.x % LANES;
+  const int p = base + lp;
+  const int K = pv.columns;
+  V3 g[10], nn[10];
+#pragma unroll
+  for (int r = 0; r < 10; ++r) g[r] = nn[r] = v3(0, 0, 0);
+  if (p < pv.patches) {
+    V3 rn[3];
+    for (int k = 0; k < 3; ++k) rn[k] = load3(pv.patch_render_normal + 9 * (long long)p + 3 * k);
+    for (int k = lane; k < K; k += LANES) {
+      V3 x, n;
+      fit_column(pv, fv, p, k, rn, x, n);
+#pragma unroll
+      for (int r = 0; r < 10; ++r) {
+        float m = pv.fit_matrix[r * K + k];
+        g[r] += m * x;
+        nn[r] += m * n;
+      }
+    }
+  }
+#pragma unroll
+  for (int off = 1; off < LANES; off <<= 1)
+#pragma unroll
+    for (int r = 0; r < 10; ++r) {
+      g[r].x += __shfl_xor_sync(0xffffffffu, g[r].x, off);
+      g[r].y += __shfl_xor_sync(0xffffffffu, g[r].y, off);
+      g[r].z += __shfl_xor_sync(0xffffffffu, g[r].z, off);
+      nn[r].x += __shfl_xor_sync(0xffffffffu, nn[r].x, off);
+      nn[r].y += __shfl_xor_sync(0xffffffffu, nn[r].y, off);
+      nn[r].z += __shfl_xor_sync(0xffffffffu, nn[r].z, off);
+    }
+  if (p < pv.patches && lane == 0) {
+    finish_patch(pv, fv, p, g);
+#pragma unroll
+    for (int r = 0; r < 10; ++r) {
+      store3(ctrl[lp][0] + 3 * r, g[r]);
+      store3(ctrl[lp][1] + 3 * r, nn[r]);
+    }
+    uint8_t f = owns[p];
+    for (int k = 0; k < 3; ++k) {
+      sedge[lp][k] = pv.patch_edge[3 * p + k];
+      f |= uint8_t(pv.patch_edge_reversed[3 * p + k] ? 8u << k : 0u);
+    }
+    sflags[lp] = f;
+  }
   __syncthreads();
-  const int G = pv.grid;
+  const int G = pv.grid, L = pv.level;
   const int np = min(PB, pv.patches - base);
   const int items = np * G;
-  for (int i = threadIdx.x; i < items; i += PB) {
-    int lp = i / G, g = i - lp * G;
-    const float* B = pv.grid_basis + 10 * g;
-    const float* cn = ctrl[lp][1];
+  const long long interior0 = pv.sub_vertices + (long long)pv.edges * (L - 1);
+  const int IG = (L - 1) * (L - 2) / 2;
+  for (int i = threadIdx.x; i < items; i += PB * LANES) {
+    int q = i / G, gp = i - q * G;
+    const float* B = pv.grid_basis + 10 * gp;
+    const float* cn = ctrl[q][1];
     V3 n = unit_patch_normal(eval_cubic(B, cn), cn);
-    store3(grid_normals + 3 * ((long long)(base + lp) * G + g), n);
-    long long o = owned_vertex(pv, gi, owns, base + lp, g);
-    if (o >= 0) store3(fv.positions + 3 * o, eval_cubic(B, ctrl[lp][0]));
+    store3(grid_normals + 3 * ((long long)(base + q) * G + gp), n);
+    GridInfo t = gi[gp];
+    long long o = -1;
+    if (t.kind == 2) {
+      o = interior0 + (long long)(base + q) * IG + t.which;
+    } else if (t.kind == 1) {
+      uint8_t f = sflags[q];
+      if ((f >> t.which) & 1) {
+        int m = ((f >> (3 + t.which)) & 1) ? L - t.step : t.step;
+        o = pv.sub_vertices + (long long)sedge[q][t.which] * (L - 1) + (m - 1);
+      }
+    }
+    if (o >= 0) store3(fv.positions + 3 * o, eval_cubic(B, ctrl[q][0]));
   }
 }
 
@@ -320,16 +380,15 @@ std::pair<bool, std::string> cuda_status() {
     cudaGetLastError();
     return {false, std::string("CUDA context creation failed: ") + cudaGetErrorString(err)};
   }
-  std::ostringstream os;
-  os << prop.name << " (compute capability " << prop.major << "." << prop.minor << ", "
-     << (prop.totalGlobalMem >> 20) << " MiB)";
-  return {true, os.str()};
+  return {true, std::string(prop.name) + " (compute capability " + std::to_string(prop.major) + "." +
+                    std::to_string(prop.minor) + ", " + std::to_string(prop.totalGlobalMem >> 20) + " MiB)"};
 }
 
 // ================================================================= CudaEvaluator
 
 struct CudaEvaluator::Impl {
   Path path = kFused;
+  int fused_lanes = 4;  // threads fitting one patch (SMOOTHFFD_FUSED_LANES: 1, 4 or 8)
   DeviceArena arena;
   PlanView pv{};
   FrameView fv{};
@@ -396,9 +455,13 @@ struct CudaEvaluator::Impl {
       return;
     }
     if (path == kFused) {
-      constexpr int PB = 64;
       mark("fit_tessellate");
-      k_fit_tessellate<PB><<<blocks_for(pv.patches, PB), PB, 0, stream>>>(pv, fv, grid_info, owns, grid_normals);
+      if (fused_lanes == 1)
+        k_fit_tessellate<128, 1><<<blocks_for(pv.patches, 128), 128, 0, stream>>>(pv, fv, grid_info, owns, grid_normals);
+      else if (fused_lanes == 8)
+        k_fit_tessellate<32, 8><<<blocks_for(pv.patches, 32), 256, 0, stream>>>(pv, fv, grid_info, owns, grid_normals);
+      else
+        k_fit_tessellate<64, 4><<<blocks_for(pv.patches, 64), 256, 0, stream>>>(pv, fv, grid_info, owns, grid_normals);
       CK_LAUNCH(k_fit_tessellate);
     } else {
       const long long P = pv.patches, K = pv.columns, G = pv.grid;
@@ -442,6 +505,7 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
   init_device();
   Impl& m = *impl_;
   m.path = parse_path(path);
+  if (const char* lanes = std::getenv("SMOOTHFFD_FUSED_LANES")) m.fused_lanes = std::atoi(lanes);
   const Plan& p = *plan_;
   CK(cudaStreamCreateWithFlags(&m.stream, cudaStreamNonBlocking));
   CKB(cublasCreate(&m.cublas));

@@ -199,9 +199,10 @@ class BlenderLattice(_Lattice):
             if counts[a] == 1:
                 continue  # a one-point axis contributes the constant weight 1
             f = rest[0, 0, 0, a]
-            step = [0, 0, 0]
-            step[a] = 1
-            d = rest[step[0], step[1], step[2], a] - f
+            last = [0, 0, 0]
+            last[a] = counts[a] - 1
+            # Spacing over the whole axis (co = f + i d): rounds less than one step does.
+            d = (rest[last[0], last[1], last[2], a] - f) / (counts[a] - 1)
             if not abs(d) > 0:
                 raise ValueError(f"rest_points: axis {a} has zero spacing")
             self._map[a, :3] = inv[a, :3] / d

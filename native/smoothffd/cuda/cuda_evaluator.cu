@@ -180,11 +180,17 @@ __global__ void __launch_bounds__(PB* LANES) k_fit_tessellate(PlanView pv, Frame
     for (int k = lane; k < K; k += LANES) {
       V3 x, n;
       fit_column(pv, fv, p, k, rn, x, n);
+      if (k < K - 9) {  // M_r is zero there except in the centre row (as in fit_patch_into)
+        float m = pv.fit_matrix[kCentre * K + k];
+        g[kCentre] += m * x;
+        nn[kCentre] += m * n;
+      } else {
 #pragma unroll
-      for (int r = 0; r < 10; ++r) {
-        float m = pv.fit_matrix[r * K + k];
-        g[r] += m * x;
-        nn[r] += m * n;
+        for (int r = 0; r < 10; ++r) {
+          float m = pv.fit_matrix[r * K + k];
+          g[r] += m * x;
+          nn[r] += m * n;
+        }
       }
     }
   }

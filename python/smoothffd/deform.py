@@ -4,6 +4,7 @@ import logging
 import os
 import threading
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -93,10 +94,24 @@ class Deformer:
         self._key = lattice.structure_key()
         self._static = None
         self.device, self.device_message = self._choose_device()
+        self._evaluator = None
         if self.device == "cuda":
-            self._evaluator = _core.CudaEvaluator(self.plan)
-        else:
+            try:
+                self._evaluator = _core.CudaEvaluator(self.plan)
+            except (RuntimeError, MemoryError) as exc:  # no memory for the plan, driver error
+                self._fall_back_to_cpu(exc)
+        if self._evaluator is None:
             self._evaluator = _core.CpuEvaluator(self.plan, self.threads)
+
+    def _fall_back_to_cpu(self, exc):
+        """device='auto': continue on the CPU, saying why; device='cuda': raise."""
+        if self.requested_device == "cuda":
+            raise exc
+        msg = f"smoothffd: CUDA failed ({exc}); continuing on the CPU"
+        warnings.warn(msg, RuntimeWarning, stacklevel=3)
+        log.warning(msg)
+        self.device, self.device_message = "cpu", f"CPU fallback: {exc}"
+        self._evaluator = _core.CpuEvaluator(self.plan, self.threads)
 
     def _choose_device(self):
         if self.requested_device == "cpu":
@@ -145,7 +160,13 @@ class Deformer:
         self.lattice = lat
         values = np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32)
         t0 = time.perf_counter()
-        positions, normals, stages = self._evaluator.evaluate(values)
+        try:
+            positions, normals, stages = self._evaluator.evaluate(values)
+        except (RuntimeError, MemoryError) as exc:
+            if self.device != "cuda":
+                raise
+            self._fall_back_to_cpu(exc)  # e.g. out of device memory for the copy back
+            positions, normals, stages = self._evaluator.evaluate(values)
         total = (time.perf_counter() - t0) * 1e3
         s = self._static_arrays()
         p = self.plan
@@ -159,6 +180,25 @@ class Deformer:
                       uvs=s["uvs"], face_index=s["face_index"],
                       rest_positions=s["rest_positions"], sharp_edges=s["sharp_edges"],
                       stats=stats)
+
+
+    def deform_on_device(self, lattice_or_points=None):
+        """CUDA only: run the frame and keep the result in device memory (no copy back).
+
+        Returns the per-stage device times in ms (CUDA events), for measuring the compute
+        apart from the transfer. Raises RuntimeError when this Deformer runs on the CPU.
+        """
+        if self.device != "cuda":
+            raise RuntimeError(f"deform_on_device: this Deformer runs on the CPU ({self.device_message})")
+        with self._lock:
+            lat = self.lattice if lattice_or_points is None else lattice_or_points
+            if not isinstance(lat, _Lattice):
+                lat = self.lattice.with_points(lat)
+            if lat.structure_key() != self._key:
+                self._plan_for(lat)
+            self.lattice = lat
+            values = np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32)
+            return dict(self._evaluator.evaluate_device(values))
 
 
 def deform(mesh, lattice, level=10, device="auto"):

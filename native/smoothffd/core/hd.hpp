@@ -10,8 +10,10 @@
 
 #if defined(__CUDACC__)
 #define SFFD_HD __host__ __device__ __forceinline__
+#define SFFD_UNROLL _Pragma("unroll")
 #else
 #define SFFD_HD inline
+#define SFFD_UNROLL _Pragma("GCC unroll 16")
 #endif
 
 namespace sffd {

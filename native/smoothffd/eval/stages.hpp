@@ -18,17 +18,23 @@ namespace sffd {
 SFFD_HD void sample_point(const PlanView& pv, const float* D, int s, float* F, float* J) {
   float p[3] = {pv.sample_position[3 * s], pv.sample_position[3 * s + 1], pv.sample_position[3 * s + 2]};
   uint32_t packed = pv.sample_piece[s];
-  int idx[3][kMaxTerms], cnt[3];
+  // Loops over kMaxTerms (not the run-time term count) keep these arrays in registers on the
+  // GPU; terms beyond a piece's count get weight 0 (its coefficients are 0 there too).
+  int idx[3][kMaxTerms], count = 0;
   float w[3][kMaxTerms], dw[3][kMaxTerms];
+SFFD_UNROLL
   for (int a = 0; a < 3; ++a) {
     const AxisPieceF& pc = pv.pieces[pv.axis_offset[a] + ((packed >> (10 * a)) & 1023u)];
     const float* m = pv.param_map + 4 * a;
     float t = ((m[0] * p[0] + m[1] * p[1] + m[2] * p[2] + m[3]) - pc.origin) * pc.inv_scale;
     if (pc.degree == 0) t = 0.0f;
-    cnt[a] = pc.count;
-    for (int k = 0; k < pc.count; ++k) {
+    count = pc.count > count ? pc.count : count;
+SFFD_UNROLL
+    for (int k = 0; k < kMaxTerms; ++k) {
       float v = 0.0f, d = 0.0f;
-      for (int q = pc.degree; q >= 0; --q) {
+SFFD_UNROLL
+      for (int q = kMaxTerms - 1; q >= 0; --q) {
+        if (q > pc.degree) continue;
         d = d * t + v;
         v = v * t + pc.coef[k][q];
       }
@@ -38,8 +44,8 @@ SFFD_HD void sample_point(const PlanView& pv, const float* D, int s, float* F, f
     }
   }
   float value[3], grad[9], A[9];
-  tensor_eval<float, float>(idx[0], w[0], dw[0], cnt[0], idx[1], w[1], dw[1], cnt[1], idx[2], w[2],
-                            dw[2], cnt[2], D, pv.dims[1], pv.dims[2], value, grad);
+  tensor_eval<float, float>(idx[0], w[0], dw[0], idx[1], w[1], dw[1], idx[2], w[2], dw[2], count, D,
+                            pv.dims[1], pv.dims[2], value, grad);
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) A[3 * r + c] = pv.param_map[4 * r + c];
   compose_deformation<float>(p, pv.sample_weight[s], value, grad, A, F, J);

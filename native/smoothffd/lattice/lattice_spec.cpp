@@ -2,6 +2,8 @@
 
 #include "smoothffd/lattice/tensor_eval.hpp"
 
+#include <algorithm>
+
 namespace sffd {
 
 void LatticeSpec::to_param(const double p[3], double s[3]) const {
@@ -20,17 +22,17 @@ void LatticeSpec::evaluate(const double p[3], const double* D, double weight, do
   int piece[3];
   to_param(p, s);
   find_pieces(s, piece);
-  double w[3][kMaxTerms], dw[3][kMaxTerms];
-  int idx[3][kMaxTerms], cnt[3];
+  double w[3][kMaxTerms] = {}, dw[3][kMaxTerms] = {};
+  int idx[3][kMaxTerms] = {}, count = 0;
   for (int a = 0; a < 3; ++a) {
     axes[a].weights(piece[a], s[a], w[a], dw[a]);
     const AxisPiece& pc = axes[a].pieces()[piece[a]];
-    cnt[a] = pc.count;
+    count = std::max(count, pc.count);
     for (int k = 0; k < pc.count; ++k) idx[a][k] = pc.index[k];
   }
   double value[3], grad[9], A[9];
-  tensor_eval<double, double>(idx[0], w[0], dw[0], cnt[0], idx[1], w[1], dw[1], cnt[1], idx[2], w[2],
-                      dw[2], cnt[2], D, axes[1].n_ctrl(), axes[2].n_ctrl(), value, grad);
+  tensor_eval<double, double>(idx[0], w[0], dw[0], idx[1], w[1], dw[1], idx[2], w[2], dw[2], count,
+                              D, axes[1].n_ctrl(), axes[2].n_ctrl(), value, grad);
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) A[3 * r + c] = object_to_param[r][c];
   compose_deformation<double>(p, weight, value, grad, A, F, J);

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "smoothffd/core/hd.hpp"
+#include "smoothffd/lattice/axis_basis.hpp"
 
 namespace sffd {
 
@@ -14,30 +15,30 @@ SFFD_HD void tensor_eval_fixed(const int* iu, const T* wu, const T* du, const in
                                const T* wv, const T* dv, const int* iw, const T* ww,
                                const T* dw, const TD* D, int nv, int nw, T value[3], T grad[9]) {
   T val[3] = {0, 0, 0}, gu[3] = {0, 0, 0}, gv[3] = {0, 0, 0}, gw[3] = {0, 0, 0};
-#pragma unroll
+SFFD_UNROLL
   for (int a = 0; a < CU; ++a) {
     T av[3] = {0, 0, 0}, avd[3] = {0, 0, 0}, awd[3] = {0, 0, 0};  // over b: value, d/dv, d/dw
-#pragma unroll
+SFFD_UNROLL
     for (int b = 0; b < CV; ++b) {
       const TD* row = D + 3 * ((long long)(iu[a] * nv + iv[b]) * nw);
       T bw[3] = {0, 0, 0}, bwd[3] = {0, 0, 0};  // over c: value, d/dw
-#pragma unroll
+SFFD_UNROLL
       for (int c = 0; c < CW; ++c) {
         const TD* d = row + 3 * iw[c];
-#pragma unroll
+SFFD_UNROLL
         for (int r = 0; r < 3; ++r) {
           bw[r] += ww[c] * (T)d[r];
           bwd[r] += dw[c] * (T)d[r];
         }
       }
-#pragma unroll
+SFFD_UNROLL
       for (int r = 0; r < 3; ++r) {
         av[r] += wv[b] * bw[r];
         avd[r] += dv[b] * bw[r];
         awd[r] += wv[b] * bwd[r];
       }
     }
-#pragma unroll
+SFFD_UNROLL
     for (int r = 0; r < 3; ++r) {
       val[r] += wu[a] * av[r];
       gu[r] += du[a] * av[r];
@@ -53,38 +54,26 @@ SFFD_HD void tensor_eval_fixed(const int* iu, const T* wu, const T* du, const in
   }
 }
 
-// D is (nu, nv, nw, 3) C-order. value[3] = sum w_a w_b w_c D_abc; grad[3*r + axis] = dvalue_r/ds_axis.
+// D is (nu, nv, nw, 3) C-order. value[3] = sum w_a w_b w_c D_abc; grad[3*r + axis] =
+// dvalue_r/ds_axis. Every axis passes kMaxTerms terms, zero weights (and any valid index)
+// beyond its own count; `count` is the largest count of the three. The contraction runs with a
+// compile-time size (1, 2, 3, 4 or 6 terms an axis), so on the GPU every array stays in
+// registers (a loop over a run-time count would put them in local memory).
 template <class T, class TD>
-SFFD_HD void tensor_eval(const int* iu, const T* wu, const T* du, int cu,
-                         const int* iv, const T* wv, const T* dv, int cv,
-                         const int* iw, const T* ww, const T* dw, int cw,
+SFFD_HD void tensor_eval(const int* iu, const T* wu, const T* du, const int* iv, const T* wv,
+                         const T* dv, const int* iw, const T* ww, const T* dw, int count,
                          const TD* D, int nv, int nw, T value[3], T grad[9]) {
-  // The common stencils (degree 2 B-splines, Blender's cubic weights) take the unrolled path.
-  if (cu == 3 && cv == 3 && cw == 3)
-    return tensor_eval_fixed<T, TD, 3, 3, 3>(iu, wu, du, iv, wv, dv, iw, ww, dw, D, nv, nw, value, grad);
-  if (cu == 4 && cv == 4 && cw == 4)
-    return tensor_eval_fixed<T, TD, 4, 4, 4>(iu, wu, du, iv, wv, dv, iw, ww, dw, D, nv, nw, value, grad);
-  for (int r = 0; r < 3; ++r) {
-    value[r] = 0;
-    grad[3 * r] = grad[3 * r + 1] = grad[3 * r + 2] = 0;
-  }
-  for (int a = 0; a < cu; ++a) {
-    for (int b = 0; b < cv; ++b) {
-      T wab = wu[a] * wv[b], gua = du[a] * wv[b], gvb = wu[a] * dv[b];
-      const TD* row = D + 3 * ((long long)(iu[a] * nv + iv[b]) * nw);
-      for (int c = 0; c < cw; ++c) {
-        const TD* d = row + 3 * iw[c];
-        T w = wab * ww[c], gu = gua * ww[c], gv = gvb * ww[c], gw = wab * dw[c];
-        for (int r = 0; r < 3; ++r) {
-          T x = (T)d[r];
-          value[r] += w * x;
-          grad[3 * r] += gu * x;
-          grad[3 * r + 1] += gv * x;
-          grad[3 * r + 2] += gw * x;
-        }
-      }
-    }
-  }
+  if (count <= 1)
+    tensor_eval_fixed<T, TD, 1, 1, 1>(iu, wu, du, iv, wv, dv, iw, ww, dw, D, nv, nw, value, grad);
+  else if (count == 2)
+    tensor_eval_fixed<T, TD, 2, 2, 2>(iu, wu, du, iv, wv, dv, iw, ww, dw, D, nv, nw, value, grad);
+  else if (count == 3)
+    tensor_eval_fixed<T, TD, 3, 3, 3>(iu, wu, du, iv, wv, dv, iw, ww, dw, D, nv, nw, value, grad);
+  else if (count == 4)
+    tensor_eval_fixed<T, TD, 4, 4, 4>(iu, wu, du, iv, wv, dv, iw, ww, dw, D, nv, nw, value, grad);
+  else
+    tensor_eval_fixed<T, TD, kMaxTerms, kMaxTerms, kMaxTerms>(iu, wu, du, iv, wv, dv, iw, ww, dw,
+                                                             D, nv, nw, value, grad);
 }
 
 // F = p + weight * value; J = I + weight * grad * A, A = ds/dp (row-major 3x3 part of the

@@ -385,7 +385,7 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
       f.degree = pc.degree;
       f.count = pc.count;
       for (int k = 0; k < kMaxTerms; ++k) {
-        f.index[k] = pc.index[k];
+        f.index[k] = k < pc.count ? pc.index[k] : 0;  // padded terms: weight 0, any valid index
         for (int q = 0; q < kMaxTerms; ++q) f.coef[k][q] = (float)pc.coef[k][q];
       }
       plan.pieces.push_back(f);

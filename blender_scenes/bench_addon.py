@@ -9,8 +9,8 @@ import os
 import sys
 import time
 
-import bmesh
-import bpy
+import bpy  # first: the bpy module puts bmesh on sys.path
+import bmesh  # noqa: E402
 import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

@@ -113,11 +113,11 @@ def set_sharp_edges(mesh, flags):
         mesh.edges.foreach_set("use_edge_sharp", flags)
 
 
-def enable_split_normals(mesh):
+def enable_split_normals(mesh, enable=True):
     """3.4-4.0: custom normals and sharp edges only count with auto smooth on; an angle of
     180 degrees makes the marked sharp edges the only splits."""
     if not HAS_CORNER_NORMALS:
-        mesh.use_auto_smooth = True
+        mesh.use_auto_smooth = enable
         mesh.auto_smooth_angle = np.pi
 
 

@@ -97,8 +97,11 @@ def write_topology(mesh, res, source, materials):
     compat.set_all_faces_smooth(mesh)
     edges = np.empty(len(mesh.edges) * 2, dtype=np.int32)
     mesh.edges.foreach_get("vertices", edges)
-    compat.set_sharp_edges(mesh, logic.edge_flags(edges, res.sharp_edges, n))
-    compat.enable_split_normals(mesh)
+    flags = logic.edge_flags(edges, res.sharp_edges, n)
+    compat.set_sharp_edges(mesh, flags)
+    # 3.4-4.0: auto smooth makes Blender compute split normals for the whole dense mesh on
+    # every evaluation; only needed with sharp edges (custom normals turn it on themselves).
+    compat.enable_split_normals(mesh, bool(flags.any()))
     mesh.materials.clear()
     for mat in materials:
         mesh.materials.append(mat)

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "smoothffd/core/parallel.hpp"
 #include "smoothffd/mesh/triangulate.hpp"
 #include "smoothffd/plan/clip.hpp"
 #include "smoothffd/plan/edges.hpp"
@@ -288,14 +289,16 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
     plan.edge_constraint[2 * e + 1] = SV + e * ES + edge_index(2 * n);
   }
   plan.sample_piece.resize(S);
-  for (long long s = 0; s < S; ++s) {
-    double pos[3], prm[3];
-    int pc[3];
-    for (int i = 0; i < 3; ++i) pos[i] = plan.sample_position[3 * s + i];
-    lattice.to_param(pos, prm);
-    lattice.find_pieces(prm, pc);
-    plan.sample_piece[s] = pack_pieces(pc);
-  }
+  parallel_for(S, default_threads(), [&](long long b, long long e) {
+    for (long long s = b; s < e; ++s) {
+      double pos[3], prm[3];
+      int pc[3];
+      for (int i = 0; i < 3; ++i) pos[i] = plan.sample_position[3 * s + i];
+      lattice.to_param(pos, prm);
+      lattice.find_pieces(prm, pc);
+      plan.sample_piece[s] = pack_pieces(pc);
+    }
+  });
   plan.fit_matrix.assign(fit.M_r.begin(), fit.M_r.end());
   plan.column_bary.resize(3 * (size_t)K);
   for (int i = 0; i < 3 * K; ++i) plan.column_bary[i] = (float)(fit.numerator[i] / double(N3));

@@ -68,6 +68,113 @@ def set_modifier_input(mod, name, value):
         mod[ident] = value
 
 
+# --- positions ------------------------------------------------------------------------------
+
+def _position_attribute(mesh):
+    # From 3.5 positions are a generic float3 attribute; its foreach path is a plain copy,
+    # while vertices' "co" goes through a per-item path in 4.x/5.x (20x slower measured).
+    return mesh.attributes.get("position") if VERSION >= (3, 5) else None
+
+
+def get_positions(mesh):
+    out = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+    attr = _position_attribute(mesh)
+    if attr is not None:
+        attr.data.foreach_get("vector", out)
+    else:
+        mesh.vertices.foreach_get("co", out)
+    return out.reshape(-1, 3)
+
+
+def set_positions(mesh, positions):
+    flat = np.ascontiguousarray(positions, dtype=np.float32).ravel()
+    attr = _position_attribute(mesh)
+    if attr is not None:
+        attr.data.foreach_set("vector", flat)
+    else:
+        mesh.vertices.foreach_set("co", flat)
+
+
+# From 4.0 the topology arrays are attributes too; the old per-element properties convert
+# item by item (measured on 5.0 for 300k faces: loops.vertex_index 266 ms vs 1 ms,
+# edges.vertices 245 ms vs 2 ms, polygons.material_index 288 ms vs about 1 ms).
+_ATTRIBUTE_TOPOLOGY = VERSION >= (4, 0)
+
+
+def _int_attribute(mesh, name, domain, create=False):
+    attr = mesh.attributes.get(name) if _ATTRIBUTE_TOPOLOGY else None
+    if attr is None and create and _ATTRIBUTE_TOPOLOGY:
+        attr = mesh.attributes.new(name, 'INT', domain)
+    return attr
+
+
+def get_corner_verts(mesh):
+    out = np.empty(len(mesh.loops), dtype=np.int32)
+    attr = _int_attribute(mesh, ".corner_vert", 'CORNER')
+    (attr.data if attr is not None else mesh.loops).foreach_get(
+        "value" if attr is not None else "vertex_index", out)
+    return out
+
+
+def set_corner_verts(mesh, corner_verts):
+    flat = np.ascontiguousarray(corner_verts, dtype=np.int32).ravel()
+    attr = _int_attribute(mesh, ".corner_vert", 'CORNER')
+    if attr is not None:
+        attr.data.foreach_set("value", flat)
+    else:
+        mesh.loops.foreach_set("vertex_index", flat)
+
+
+def get_material_index(mesh):
+    out = np.zeros(len(mesh.polygons), dtype=np.int32)
+    if _ATTRIBUTE_TOPOLOGY:
+        attr = mesh.attributes.get("material_index")
+        if attr is not None:   # absent means all zero
+            attr.data.foreach_get("value", out)
+    else:
+        mesh.polygons.foreach_get("material_index", out)
+    return out
+
+
+def set_material_index(mesh, index):
+    flat = np.ascontiguousarray(index, dtype=np.int32)
+    if _ATTRIBUTE_TOPOLOGY:
+        if not flat.any():
+            return
+        _int_attribute(mesh, "material_index", 'FACE', create=True).data.foreach_set("value", flat)
+    else:
+        mesh.polygons.foreach_set("material_index", flat)
+
+
+def get_edges(mesh):
+    out = np.empty(len(mesh.edges) * 2, dtype=np.int32)
+    attr = mesh.attributes.get(".edge_verts") if _ATTRIBUTE_TOPOLOGY else None
+    if attr is not None:
+        attr.data.foreach_get("value", out)
+    else:
+        mesh.edges.foreach_get("vertices", out)
+    return out.reshape(-1, 2)
+
+
+def get_uvs(mesh, layer):
+    out = np.empty(len(mesh.loops) * 2, dtype=np.float32)
+    attr = mesh.attributes.get(layer.name) if _ATTRIBUTE_TOPOLOGY else None
+    if attr is not None and attr.data_type == 'FLOAT2':
+        attr.data.foreach_get("vector", out)
+    else:
+        layer.data.foreach_get("uv", out)
+    return out.reshape(-1, 2)
+
+
+def set_uvs(mesh, layer, uvs):
+    flat = np.ascontiguousarray(uvs, dtype=np.float32).ravel()
+    attr = mesh.attributes.get(layer.name) if _ATTRIBUTE_TOPOLOGY else None
+    if attr is not None and attr.data_type == 'FLOAT2':
+        attr.data.foreach_set("vector", flat)
+    else:
+        layer.data.foreach_set("uv", flat)
+
+
 # --- reading split normals ------------------------------------------------------------------
 
 def read_corner_normals(mesh):

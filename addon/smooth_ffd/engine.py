@@ -151,7 +151,8 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
         plan_key = (source.key, lattice.structure_key(), level, backend)
         if st.deformer is None or st.plan_key != plan_key:
             st.deformer = None
-            st.deformer = core.make_deformer(source, lattice, level, backend)
+            with _progress(len(source.corner_vertices) * level * level > 2_000_000):
+                st.deformer = core.make_deformer(source, lattice, level, backend)
             st.plan_key = plan_key
         res = st.deformer.deform(lattice)
         t1 = time.perf_counter()
@@ -175,6 +176,22 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
 
 
 _last_timing = {}
+
+
+class _progress:
+    """Blender's progress cursor around a long first plan (big mesh, high level)."""
+
+    def __init__(self, long):
+        wm = getattr(bpy.context, "window_manager", None)
+        self.wm = wm if long and wm is not None and not bpy.app.background else None
+
+    def __enter__(self):
+        if self.wm is not None:
+            self.wm.progress_begin(0, 1)
+
+    def __exit__(self, *exc):
+        if self.wm is not None:
+            self.wm.progress_end()
 
 
 def last_timing(obj, mod):

@@ -12,18 +12,17 @@ class SourceMesh:
         nv, nl, nf = len(mesh.vertices), len(mesh.loops), len(mesh.polygons)
         if nf == 0:
             raise logic.SmoothFFDError("the mesh has no faces")
-        self.positions = _get(mesh.vertices, "co", np.float32, nv * 3).reshape(nv, 3)
-        self.corner_vertices = _get(mesh.loops, "vertex_index", np.int32, nl)
+        self.positions = compat.get_positions(mesh)
+        self.corner_vertices = compat.get_corner_verts(mesh)
         starts = _get(mesh.polygons, "loop_start", np.int32, nf)
         self.face_offsets = np.append(starts, np.int32(nl)).astype(np.int32)
         if np.any(np.diff(self.face_offsets) < 3):
             raise logic.SmoothFFDError("the mesh has faces with fewer than 3 corners")
-        self.material_index = _get(mesh.polygons, "material_index", np.int32, nf)
+        self.material_index = compat.get_material_index(mesh)
         self.corner_normals = compat.read_corner_normals(mesh)
         uv_layer = _active_uv(mesh)
         self.uv_name = uv_layer.name if uv_layer is not None else None
-        self.uvs = (_get(uv_layer.data, "uv", np.float32, nl * 2).reshape(nl, 2)
-                    if uv_layer is not None else None)
+        self.uvs = compat.get_uvs(mesh, uv_layer) if uv_layer is not None else None
         self.weights = _vertex_weights(mesh, group_index, invert)
         # Topology decides whether a cached plan can be reused; the rest only its inputs.
         self.topology_key = logic.digest(self.corner_vertices, self.face_offsets, nv)
@@ -73,17 +72,20 @@ REST_ATTRIBUTE = "smooth_ffd_rest_position"
 def write_topology(mesh, res, source, materials):
     """Rebuilds the result mesh from a core Result (new plan or first update)."""
     mesh.clear_geometry()
+    # Materials first: clearing a mesh's material slots resets its faces' material indices.
+    mesh.materials.clear()
+    for mat in materials:
+        mesh.materials.append(mat)
     n, t = len(res.positions), len(res.triangles)
     loops, starts, totals = logic.triangle_loops(res.triangles)
     mesh.vertices.add(n)
     mesh.loops.add(3 * t)
     mesh.polygons.add(t)
-    mesh.vertices.foreach_set("co", np.ascontiguousarray(res.positions, np.float32).ravel())
-    mesh.loops.foreach_set("vertex_index", loops)
+    compat.set_positions(mesh, res.positions)
+    compat.set_corner_verts(mesh, loops)
     compat.set_loop_starts(mesh, starts, totals)
     face_index = np.asarray(res.face_index, dtype=np.int64)
-    mesh.polygons.foreach_set("material_index",
-                              np.ascontiguousarray(source.material_index[face_index], np.int32))
+    compat.set_material_index(mesh, source.material_index[face_index])
     mesh.update(calc_edges=True)
     # Which source face each output triangle came from: for tools, tests and debugging.
     attr = mesh.attributes.new(SOURCE_FACE_ATTRIBUTE, 'INT', 'FACE')
@@ -93,23 +95,18 @@ def write_topology(mesh, res, source, materials):
     attr.data.foreach_set("vector", np.ascontiguousarray(res.rest_positions, np.float32).ravel())
     if res.uvs is not None:
         layer = mesh.uv_layers.new(name=source.uv_name or "UVMap")
-        layer.data.foreach_set("uv", np.ascontiguousarray(res.uvs, np.float32).ravel())
+        compat.set_uvs(mesh, layer, res.uvs)
     compat.set_all_faces_smooth(mesh)
-    edges = np.empty(len(mesh.edges) * 2, dtype=np.int32)
-    mesh.edges.foreach_get("vertices", edges)
-    flags = logic.edge_flags(edges, res.sharp_edges, n)
+    flags = logic.edge_flags(compat.get_edges(mesh), res.sharp_edges, n)
     compat.set_sharp_edges(mesh, flags)
     # 3.4-4.0: auto smooth makes Blender compute split normals for the whole dense mesh on
     # every evaluation; only needed with sharp edges (custom normals turn it on themselves).
     compat.enable_split_normals(mesh, bool(flags.any()))
-    mesh.materials.clear()
-    for mat in materials:
-        mesh.materials.append(mat)
 
 
 def write_positions(mesh, res):
     """Same plan as last time: only the coordinates change (topology, UVs, flags are kept)."""
-    mesh.vertices.foreach_set("co", np.ascontiguousarray(res.positions, np.float32).ravel())
+    compat.set_positions(mesh, res.positions)
 
 
 def write_normals(mesh, res):

@@ -10,7 +10,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
 import smooth_ffd  # noqa: E402
-from smooth_ffd import compat, engine  # noqa: E402
+from smooth_ffd import compat, engine, meshio  # noqa: E402
 
 TOL = 1e-5
 
@@ -106,6 +106,42 @@ def test_frames_and_shape_keys():
     key.value = 0.7
     T.update()
     parity("lattice shape key", obj, lat, ref, mod)
+
+
+def test_uvs_materials():
+    """Output material per triangle = its source face's; UVs at original vertices = input."""
+    obj, lat, ref, mod = scene("cube")
+    me = obj.data
+    for name in ("red", "blue"):
+        me.materials.append(bpy.data.materials.new(name))
+    mat = (np.arange(len(me.polygons)) % 2).astype(np.int32)
+    me.polygons.foreach_set("material_index", mat)
+    me.update()
+    T.update()
+    out = T.evaluated_mesh(obj)
+    faces = np.empty(len(out.polygons), dtype=np.int32)
+    out.attributes[meshio.SOURCE_FACE_ATTRIBUTE].data.foreach_get("value", faces)
+    got = np.empty(len(out.polygons), dtype=np.int32)
+    out.polygons.foreach_get("material_index", got)
+    T.check("material index per source face", np.array_equal(got, mat[faces]),
+            f"{(got != mat[faces]).sum()} differ")
+    T.check("materials carried", [m.name for m in out.materials] == ["red", "blue"],
+            str([m.name if m else None for m in out.materials]))
+    uv_in = np.empty(len(me.loops) * 2, dtype=np.float32)
+    me.uv_layers.active.data.foreach_get("uv", uv_in)
+    uv_in = uv_in.reshape(-1, 2)
+    uv_out = np.empty(len(out.loops) * 2, dtype=np.float32)
+    out.uv_layers[0].data.foreach_get("uv", uv_out)
+    uv_out = uv_out.reshape(-1, 2)
+    in_verts = T.triangles_like_loops(me)
+    poly_of_loop = np.repeat(np.arange(len(me.polygons)), [len(p.vertices) for p in me.polygons])
+    key_in = {(int(f), int(v)): c for c, (f, v) in enumerate(zip(poly_of_loop, in_verts))}
+    out_verts = T.triangles(out).ravel()
+    out_face = np.repeat(faces, 3)
+    nv = len(me.vertices)
+    errs = [np.abs(uv_out[k] - uv_in[key_in[(int(out_face[k]), int(out_verts[k]))]]).max()
+            for k in np.nonzero(out_verts < nv)[0]]
+    T.check("UVs at original vertices", errs and max(errs) < 1e-6, f"max {max(errs):.1e}")
 
 
 def test_hook():
@@ -288,7 +324,7 @@ def source_digest_mesh(me):
 
 def main():
     T.setup()
-    for fn in (test_lattice_edits, test_levels, test_frames_and_shape_keys, test_hook, test_edit_modes,
+    for fn in (test_lattice_edits, test_levels, test_frames_and_shape_keys, test_uvs_materials, test_hook, test_edit_modes,
                test_errors, test_undo, test_duplicate, test_save_reload, test_apply_remove):
         T.run(fn.__name__, fn)
     T.finish()

@@ -131,6 +131,15 @@ PYBIND11_MODULE(_core, m) {
       .def_property_readonly("level", [](const Plan& p) { return p.level; })
       .def_property_readonly("output_vertices", [](const Plan& p) { return p.output_vertices; })
       .def_property_readonly("output_triangles", [](const Plan& p) { return p.output_triangles; })
+      .def_property_readonly("render_vertex_count", [](const Plan& p) { return p.render_vertices; })
+      .def("render_vertices",
+           [](const Plan& p) {
+             return py::make_tuple(copy_out(p.render_position, {(py::ssize_t)p.render_vertices}),
+                                   copy_out(p.render_triangles, {(py::ssize_t)p.output_triangles, 3}));
+           },
+           "(render_position (R,), render_triangles (T, 3)): output vertex of each render vertex "
+           "(an output vertex duplicated where normals split) and the triangles in render vertices")
+      .def("render_owner", [](const Plan& p) { return copy_out(p.render_owner, {(py::ssize_t)p.render_vertices, 2}); })
       .def_property_readonly("dims", [](const Plan& p) { return py::make_tuple(p.dims[0], p.dims[1], p.dims[2]); })
       .def_property_readonly("bytes", &Plan::bytes)
       .def_property_readonly("build_ms",

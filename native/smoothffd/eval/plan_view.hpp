@@ -10,7 +10,7 @@ namespace sffd {
 
 struct PlanView {
   int input_vertices, sub_vertices, patches, edges, samples, columns, level, grid;
-  int output_vertices, output_triangles;
+  int output_vertices, output_triangles, render_vertices;
   const AxisPieceF* pieces;
   int axis_offset[3], dims[3];
   float param_map[12];
@@ -33,6 +33,10 @@ struct PlanView {
   const float* grid_basis;
   const int* local_triangles;
   const int* output_owner;
+  const int* render_owner;       // R x 2
+  const int* render_position;    // R
+  const int* patch_grid_render;  // P x G
+  const int* render_triangles;   // T x 3
 };
 
 // Intermediate and output buffers of one frame.
@@ -59,6 +63,7 @@ inline PlanView host_view(const Plan& p) {
   v.grid = p.grid;
   v.output_vertices = p.output_vertices;
   v.output_triangles = p.output_triangles;
+  v.render_vertices = p.render_vertices;
   v.pieces = p.pieces.data();
   for (int a = 0; a < 3; ++a) {
     v.axis_offset[a] = p.axis_offset[a];
@@ -84,6 +89,10 @@ inline PlanView host_view(const Plan& p) {
   v.grid_basis = p.grid_basis.data();
   v.local_triangles = p.local_triangles.data();
   v.output_owner = p.output_owner.data();
+  v.render_owner = p.render_owner.data();
+  v.render_position = p.render_position.data();
+  v.patch_grid_render = p.patch_grid_render.data();
+  v.render_triangles = p.render_triangles.data();
   return v;
 }
 

@@ -62,6 +62,7 @@ struct Plan {
   int grid = 0;             // G = (L+1)(L+2)/2 tessellation points a patch
   int output_vertices = 0;  // N
   int output_triangles = 0; // T = P L^2
+  int render_vertices = 0;  // R >= N (for the output vertices that lie on a patch)
 
   // --- lattice tables
   std::vector<AxisPieceF> pieces;  // the three axes' pieces, concatenated
@@ -106,6 +107,27 @@ struct Plan {
   std::vector<int> face_index;         // T
   std::vector<float> uvs;              // T x 3 x 2, or empty
   std::vector<int> sharp_edges;        // K x 2 output vertex pairs where normals split
+
+  // --- render vertices: an output vertex duplicated only where its normals split (the
+  // compact per-frame output of the CUDA evaluator: normals R x 3, see cuda_evaluator.hpp).
+  // The (patch, grid point) pairs at output vertex o fall into normal classes, one render
+  // vertex each:
+  //   interior grid point: one class;
+  //   point inside sub-edge e: one class when edge_flags[e] has neither sharp bit nor
+  //     kNonManifold, else one per incident patch ("side");
+  //   sub-vertex v: the patches around v, joined (union-find) across each sub-edge at v that
+  //     is manifold (two patches) and smooth at v's end; one class per connected set.
+  // Numbering: by output vertex; the classes of one output vertex are consecutive. At a
+  // sub-vertex classes are ordered by their lowest (patch, corner); along a split sub-edge e
+  // the render vertex of step m (1..L-1 from end a) on side s (incident patches in increasing
+  // order) is base_e + (m - 1) * sides_e + s. Interior points: render = output vertex +
+  // (R - N). So R == N (and render == output vertex) when no normal splits.
+  std::vector<int> render_owner;       // R x 2: (patch, grid point) whose normal patch gives the
+                                       // class's normal; for an unsplit edge or interior point
+                                       // the output_owner pair
+  std::vector<int> render_position;    // R: output vertex (its position)
+  std::vector<int> patch_grid_render;  // P x G: render vertex of each grid point
+  std::vector<int> render_triangles;   // T x 3: triangles in render-vertex indices
 
   // Timings of the plan's build stages (ms), for the stats.
   std::vector<std::pair<std::string, double>> build_ms;

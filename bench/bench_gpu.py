@@ -59,6 +59,11 @@ def cpu_time(plan, vals, reps):
     return float(np.median(ts)), stages[int(np.argsort(ts)[len(ts) // 2])], ev.threads
 
 
+VARIANTS = [("SMOOTHFFD_FUSED_LANES", "1"), ("SMOOTHFFD_FUSED_LANES", "8"),
+            ("SMOOTHFFD_FUSED_BLOCKS", "3"), ("SMOOTHFFD_FUSED_BLOCKS", "4"),
+            ("SMOOTHFFD_SAMPLE_BLOCKS", "2"), ("SMOOTHFFD_SAMPLE_BLOCKS", "3")]
+
+
 def gpu_case(name, P, F, N, lat, level, iters, cpu_reps, log, variants=False):
     mesh = smoothffd.Mesh(P, F, corner_normals=N[F.reshape(-1)])
     t0 = time.perf_counter()
@@ -67,7 +72,8 @@ def gpu_case(name, P, F, N, lat, level, iters, cpu_reps, log, variants=False):
     vals = values(lat)
     row = dict(case=name, level=level, input_triangles=int(len(F)), patches=plan.patches,
                samples=plan.samples, output_vertices=plan.output_vertices,
-               output_triangles=plan.output_triangles, plan_ms=plan_ms)
+               output_triangles=plan.output_triangles, render_vertices=plan.render_vertex_count,
+               plan_ms=plan_ms)
     ev = _core.CudaEvaluator(plan, "fused")
     row["output_bytes"] = ev.output_bytes
     row["device_bytes"] = ev.device_bytes
@@ -76,20 +82,23 @@ def gpu_case(name, P, F, N, lat, level, iters, cpu_reps, log, variants=False):
         row[path] = ev.benchmark(vals, iters)
         log(f"  {name} L={level} {path}: {row[path]}")
     if variants:
-        for lanes in ("1", "8"):
-            os.environ["SMOOTHFFD_FUSED_LANES"] = lanes
+        # Kernel variants (environment switches read by CudaEvaluator): fit lanes a patch,
+        # register caps (minimum blocks an SM) of the sampling and fused kernels.
+        for var, val in VARIANTS:
+            os.environ[var] = val
             ev2 = _core.CudaEvaluator(plan, "fused")
-            row[f"fused_lanes{lanes}"] = ev2.benchmark(vals, iters)
-            log(f"  {name} L={level} fused lanes={lanes}: {row[f'fused_lanes{lanes}']}")
+            key = f"{var.lower().replace('smoothffd_', '')}={val}"
+            row.setdefault("variants", {})[key] = ev2.benchmark(vals, iters)
+            log(f"  {name} L={level} fused {key}: {row['variants'][key]}")
             del ev2
-        os.environ.pop("SMOOTHFFD_FUSED_LANES")
+            os.environ.pop(var)
     # Whole frame with the copy back to numpy (corner normals built on the device).
     ev.path = "fused"
     ev.evaluate(vals)
     ts = []
     for _ in range(5):
         t0 = time.perf_counter()
-        _, _, st = ev.evaluate(vals)
+        _, _, st = ev.evaluate(vals)  # fresh numpy arrays every time (as deform() does)
         ts.append((time.perf_counter() - t0) * 1e3)
     row["evaluate_with_copy_back_ms"] = float(np.median(ts))
     row["evaluate_stages"] = st
@@ -216,8 +225,13 @@ def main():
             print(f"{row['case']:6} {row['level']:>3} {row['output_triangles']:>10} {path:7} {st:60} "
                   f"{b['total_events']:8.4f} {b['total_graph']:8.4f} {b['floor_ms']:7.4f} "
                   f"{best / b['floor_ms']:7.2f} {cpu:8.2f} {cpu / best:8.1f}")
-        print(f"       output {row['output_bytes'] / 1e6:.1f} MB, d2d {row['fused']['d2d_bandwidth_GBps']:.0f} GB/s, "
-              f"evaluate()+copy back {row['evaluate_with_copy_back_ms']:.2f} ms, plan {row['plan_ms']:.0f} ms")
+        print(f"       output {row['output_bytes'] / 1e6:.1f} MB (N {row['output_vertices']}, R {row['render_vertices']}), "
+              f"d2d {row['fused']['d2d_bandwidth_GBps']:.0f} GB/s, "
+              f"evaluate()+copy back {row['evaluate_with_copy_back_ms']:.2f} ms "
+              f"({', '.join(f'{k}={v:.2f}' for k, v in row['evaluate_stages'].items())}), plan {row['plan_ms']:.0f} ms")
+        for key, b in row.get("variants", {}).items():
+            print(f"       variant {key:18} events {b['total_events']:.4f} graph {b['total_graph']:.4f} "
+                  f"sampling {b['sampling']:.4f} fit_tessellate {b['fit_tessellate']:.4f}")
     for b in result["baseline"]:
         print(f"baseline {b['sub_triangles']:>3} sub-tris/patch: upsampling {b['upsampling_ms']:.4f} ms "
               f"({b['points']} pts), smooth FFD {b['smooth_ffd_ms']:.4f} ms, ratio {b['ratio']:.3f} (paper 0.82 at 256)")

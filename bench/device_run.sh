@@ -26,7 +26,7 @@ if has build; then
 fi
 python3 -c "import smoothffd; print(smoothffd.cuda_status())"
 if has test; then
-  timeout ${TEST_TIMEOUT:-300} python3 -m pytest -q -x tests/test_cuda.py 2>&1 | tee "$OUT/test_cuda.log" | tail -15
+  timeout ${TEST_TIMEOUT:-300} python3 -m pytest -q -x tests/test_cuda.py tests/test_render_vertices.py 2>&1 | tee "$OUT/test_cuda.log" | tail -15
 fi
 if has sanitize; then
   SMOOTHFFD_SANITIZER=1 timeout 240 compute-sanitizer --tool memcheck --error-exitcode 9 \

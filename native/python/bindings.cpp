@@ -229,11 +229,12 @@ PYBIND11_MODULE(_core, m) {
            [](CudaEvaluator& ev) {
              const Plan& plan = ev.plan();
              py::array_t<float> pos({(py::ssize_t)plan.output_vertices, (py::ssize_t)3});
-             py::array_t<float> nrm({(py::ssize_t)plan.patches, (py::ssize_t)plan.grid, (py::ssize_t)3});
+             py::array_t<float> nrm({(py::ssize_t)plan.render_vertices, (py::ssize_t)3});
              ev.download_compact(pos.mutable_data(), nrm.mutable_data());
              return py::make_tuple(pos, nrm);
            },
-           "(positions (N, 3), grid normals (P, G, 3)): the compact device output of the last frame")
+           "(positions (N, 3), render-vertex normals (R, 3)): the compact device output of the last "
+           "frame (Plan.render_vertices() for the topology)")
       .def("benchmark",
            [](CudaEvaluator& ev, Arr<float> D, int iters) {
              const Plan& plan = ev.plan();

@@ -11,8 +11,17 @@
 //           shared memory and tessellates them straight from there (no intermediate matrices).
 //
 // Device-resident output of a frame (compact): positions, N x 3 (welded output vertices), and
-// normals per (patch, grid point), P x G x 3. Per-corner normals (T x 3 x 3) are only built,
-// on the device, when copying back to the host.
+// normals per render vertex, R x 3 (Plan::render_*: an output vertex duplicated only where
+// normals split; topology Plan::render_triangles, built once with the plan). Each normal is
+// written once, by its render owner (patch, grid point). Positions per output vertex rather
+// than per render vertex: 12 (N + R) bytes instead of 24 R (equal when nothing splits, fewer
+// on sharp meshes), positions along a crease stay bitwise welded (one evaluation each, no
+// ulp cracks between duplicates), and it is the layout Blender takes (vertex positions +
+// corner normals); a vertex buffer reads positions[render_position[r]]. Per-corner normals
+// (T x 3 x 3) exist only in the copy back to the host (evaluate), gathered there.
+// Where an output vertex's patches have normals closer than the plan's sharp angle but not
+// equal, every corner of its render vertex gets the owner's normal (the CPU evaluator keeps
+// each patch's own): a difference below that angle.
 //
 // Errors (no device, launch failures, out of memory) throw CudaError (std::runtime_error) or
 // CudaOutOfMemory (std::bad_alloc): never an abort.
@@ -54,20 +63,21 @@ class CudaEvaluator : public Evaluator {
   std::string name() const override { return "cuda"; }
   const Plan& plan() const override { return *plan_; }
 
-  // Whole frame: D up, device stages, per-corner expansion, copy back through pinned memory.
+  // Whole frame: D up, device stages, compact copy back through pinned memory, per-corner
+  // normals gathered on the host (threads) into corner_normals.
   StageTimes evaluate(const float* D, float* positions, float* corner_normals) override;
   // Device stages only; the result stays on the device. Times from CUDA events.
   StageTimes evaluate_device(const float* D);
 
   std::string path() const;
   void set_path(const std::string& path);
-  // Bytes of the compact device output of one frame (positions + per-(patch, grid) normals).
+  // Bytes of the compact device output of one frame: 12 (N + R).
   size_t output_bytes() const;
   size_t device_bytes() const;  // device memory held
   // Fills the device outputs and intermediates with NaN (tests: every element must be written).
   void poison();
-  // Copies of the compact device output: positions (N x 3), grid normals (P x G x 3).
-  void download_compact(float* positions, float* grid_normals);
+  // Copies of the compact device output: positions (N x 3), render-vertex normals (R x 3).
+  void download_compact(float* positions, float* normals);
 
   // Timing on the device (median of `iters` frames with CUDA events per stage; the whole
   // frame also as a replayed CUDA graph; the device-to-device copy floor on this run).

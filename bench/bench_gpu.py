@@ -61,7 +61,7 @@ def cpu_time(plan, vals, reps):
 
 VARIANTS = [("SMOOTHFFD_FUSED_LANES", "1"), ("SMOOTHFFD_FUSED_LANES", "8"),
             ("SMOOTHFFD_FUSED_BLOCKS", "3"), ("SMOOTHFFD_FUSED_BLOCKS", "4"),
-            ("SMOOTHFFD_SAMPLE_BLOCKS", "2"), ("SMOOTHFFD_SAMPLE_BLOCKS", "3")]
+            ("SMOOTHFFD_SAMPLE_BLOCKS", "1"), ("SMOOTHFFD_SAMPLE_BLOCKS", "2"), ("SMOOTHFFD_SAMPLE_BLOCKS", "3")]
 
 
 def gpu_case(name, P, F, N, lat, level, iters, cpu_reps, log, variants=False):

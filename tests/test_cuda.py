@@ -178,7 +178,7 @@ def test_levels(level, path):
     check(cube(sharp=True, cuts=1), bspline(rng, degree=(2, 3, 2)), level=level, path=path)
 
 
-@pytest.mark.parametrize("variant", [("SMOOTHFFD_SAMPLE_BLOCKS", "2"), ("SMOOTHFFD_SAMPLE_BLOCKS", "3"),
+@pytest.mark.parametrize("variant", [("SMOOTHFFD_SAMPLE_BLOCKS", "1"), ("SMOOTHFFD_SAMPLE_BLOCKS", "2"), ("SMOOTHFFD_SAMPLE_BLOCKS", "3"),
                                      ("SMOOTHFFD_FUSED_BLOCKS", "3"), ("SMOOTHFFD_FUSED_BLOCKS", "4"),
                                      ("SMOOTHFFD_FUSED_LANES", "1"), ("SMOOTHFFD_FUSED_LANES", "8")])
 def test_kernel_variants(variant, monkeypatch):

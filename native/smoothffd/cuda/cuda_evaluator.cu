@@ -177,6 +177,51 @@ __device__ __forceinline__ void sample_body(const PlanView& pv, const FrameView&
 // register cap from MINB blocks of 256 an SM (SMOOTHFFD_SAMPLE_BLOCKS = 2 or 3).
 __global__ void k_sample(PlanView pv, FrameView fv, const float* __restrict__ D) { sample_body(pv, fv, D); }
 
+// sample_point (stages.hpp) with C terms an axis at compile time instead of kMaxTerms, for
+// plans whose pieces all have count <= C and degree < C: the padded terms are exact zeros
+// either way (fma(0, d, x) = x), so the result is the same as sample_point's.
+template <int C>
+__device__ __forceinline__ void sample_point_c(const PlanView& pv, const float* __restrict__ D, int s, float* F, float* J) {
+  float p[3] = {pv.sample_position[3 * s], pv.sample_position[3 * s + 1], pv.sample_position[3 * s + 2]};
+  uint32_t packed = pv.sample_piece[s];
+  int idx[3][C];
+  float w[3][C], dw[3][C];
+#pragma unroll
+  for (int a = 0; a < 3; ++a) {
+    const AxisPieceF& pc = pv.pieces[pv.axis_offset[a] + ((packed >> (10 * a)) & 1023u)];
+    const float* m = pv.param_map + 4 * a;
+    float t = ((m[0] * p[0] + m[1] * p[1] + m[2] * p[2] + m[3]) - pc.origin) * pc.inv_scale;
+    if (pc.degree == 0) t = 0.0f;
+#pragma unroll
+    for (int k = 0; k < C; ++k) {
+      float v = 0.0f, d = 0.0f;
+#pragma unroll
+      for (int q = C - 1; q >= 0; --q) {
+        if (q > pc.degree) continue;
+        d = d * t + v;
+        v = v * t + pc.coef[k][q];
+      }
+      idx[a][k] = pc.index[k];
+      w[a][k] = v;
+      dw[a][k] = d * pc.inv_scale;
+    }
+  }
+  float value[3], grad[9], A[9];
+  tensor_eval_fixed<float, float, C, C, C>(idx[0], w[0], dw[0], idx[1], w[1], dw[1], idx[2], w[2], dw[2], D,
+                                           pv.dims[1], pv.dims[2], value, grad);
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) A[3 * r + c] = pv.param_map[4 * r + c];
+  compose_deformation<float>(p, pv.sample_weight[s], value, grad, A, F, J);
+}
+
+template <int C>
+__global__ void __launch_bounds__(256) k_sample_fixed(PlanView pv, FrameView fv, const float* __restrict__ D) {
+  int s = blockIdx.x * blockDim.x + threadIdx.x;
+  if (s >= pv.samples) return;
+  sample_point_c<C>(pv, D, s, fv.sample_value + 3 * (long long)s, fv.sample_jacobian + 9 * (long long)s);
+  if (s < pv.sub_vertices) tessellate_position(pv, fv, s);
+}
+
 template <int MINB>
 __global__ void __launch_bounds__(256, MINB) k_sample_capped(PlanView pv, FrameView fv, const float* __restrict__ D) {
   sample_body(pv, fv, D);
@@ -483,7 +528,11 @@ struct CudaEvaluator::Impl {
   uint8_t* owns = nullptr;
   PatchRender* prender = nullptr;  // P
   long long render_shift = 0;      // R - N
-  int sample_blocks = 1;           // k_sample's MINB (SMOOTHFFD_SAMPLE_BLOCKS: 1, 2 or 3)
+  // Sampling kernel (SMOOTHFFD_SAMPLE_BLOCKS): 0 (default) k_sample_fixed<C> with C = the
+  // plan's largest term count when C <= 4, else as 3; 1 k_sample (no register cap); 2, 3
+  // k_sample_capped<MINB>. See docs/benchmarks.md for the measured variants.
+  int sample_blocks = 0;
+  int max_terms = 6;               // largest count / degree + 1 over the plan's pieces
   int fused_blocks = 1;            // k_fit_tessellate's MINB (SMOOTHFFD_FUSED_BLOCKS: 1, 3 or 4)
   float* D = nullptr;
   float* normals = nullptr;  // R x 3 (render vertices)
@@ -532,9 +581,16 @@ struct CudaEvaluator::Impl {
     CK(cudaMemcpyAsync(D, h_D.ptr, nD * sizeof(float), cudaMemcpyHostToDevice, stream));
     mark("sampling");
     if (pv.samples > 0) {
-      if (sample_blocks == 2)
+      const bool fixed = sample_blocks == 0;
+      if (fixed && max_terms <= 2)
+        k_sample_fixed<2><<<blocks_for(pv.samples, T), T, 0, stream>>>(pv, fv, D);
+      else if (fixed && max_terms == 3)
+        k_sample_fixed<3><<<blocks_for(pv.samples, T), T, 0, stream>>>(pv, fv, D);
+      else if (fixed && max_terms == 4)
+        k_sample_fixed<4><<<blocks_for(pv.samples, T), T, 0, stream>>>(pv, fv, D);
+      else if (sample_blocks == 2)
         k_sample_capped<2><<<blocks_for(pv.samples, T), T, 0, stream>>>(pv, fv, D);
-      else if (sample_blocks == 3)
+      else if (sample_blocks == 3 || fixed)
         k_sample_capped<3><<<blocks_for(pv.samples, T), T, 0, stream>>>(pv, fv, D);
       else
         k_sample<<<blocks_for(pv.samples, T), T, 0, stream>>>(pv, fv, D);
@@ -608,6 +664,8 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
   if (const char* lanes = std::getenv("SMOOTHFFD_FUSED_LANES")) m.fused_lanes = std::atoi(lanes);
   if (const char* b = std::getenv("SMOOTHFFD_SAMPLE_BLOCKS")) m.sample_blocks = std::atoi(b);
   if (const char* b = std::getenv("SMOOTHFFD_FUSED_BLOCKS")) m.fused_blocks = std::atoi(b);
+  m.max_terms = 1;
+  for (const AxisPieceF& pc : plan_->pieces) m.max_terms = std::max(m.max_terms, std::max(pc.count, pc.degree + 1));
   const Plan& p = *plan_;
   CK(cudaStreamCreateWithFlags(&m.stream, cudaStreamNonBlocking));
   CKB(cublasCreate(&m.cublas));

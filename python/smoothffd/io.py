@@ -153,6 +153,9 @@ def _parse_corners_slow(toks, corner_line, path):
             except ValueError:
                 msg = f"non-integer index in face corner {tok!r}"
                 raise _error(path, corner_line(c), msg) from None
+            except OverflowError:  # beyond int64 (found by native/fuzz/fuzz_obj.py)
+                msg = f"index out of range in face corner {tok!r}"
+                raise _error(path, corner_line(c), msg) from None
     return out
 
 

@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# Bounded fuzzing (about a minute in all): the libFuzzer target over plan build + CPU evaluation
+# (native/fuzz/fuzz_plan.cpp, clang++ -fsanitize=fuzzer,address,undefined) and the OBJ reader
+# (native/fuzz/fuzz_obj.py: atheris when build/venv-fuzz has it, else a seeded mutation loop).
+# Seeds: native/fuzz/corpus/{plan,obj}; new inputs go to build/fuzz/corpus-*, crashes to
+# build/fuzz/crash-*. FUZZ_SECONDS (default 30) per target. Exit status non-zero on any crash.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+SECS=${FUZZ_SECONDS:-30}
+OUT=build/fuzz
+mkdir -p "$OUT/obj" "$OUT/corpus-plan" "$OUT/corpus-obj"
+rm -f "$OUT"/crash-*  # artifacts of this run only
+CXX=${FUZZ_CXX:-clang++}
+command -v "$CXX" >/dev/null || { echo "fuzz.sh: $CXX not found (apt-get install -y clang libclang-rt-14-dev)"; exit 2; }
+FLAGS=(-std=c++17 -O2 -gline-tables-only -fsanitize=fuzzer-no-link,address,undefined
+       -fno-sanitize-recover=all -Inative -I/usr/include/eigen3)
+objs=()
+for src in native/smoothffd/*/*.cpp native/fuzz/fuzz_plan.cpp; do
+  o="$OUT/obj/$(echo "${src%.cpp}" | tr / _).o"
+  # Rebuild when the source or any core header is newer than the object.
+  if [ ! -f "$o" ] || [ "$src" -nt "$o" ] || [ -n "$(find native/smoothffd -name '*.hpp' -newer "$o" | head -1)" ]; then
+    echo "fuzz.sh: compiling $src"
+    "$CXX" "${FLAGS[@]}" -c "$src" -o "$o"
+  fi
+  objs+=("$o")
+done
+"$CXX" -fsanitize=fuzzer,address,undefined "${objs[@]}" -o "$OUT/fuzz_plan" -lpthread
+echo "== fuzz_plan: ${SECS}s"
+UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 "$OUT/fuzz_plan" -max_total_time="$SECS" \
+  -max_len=4096 -timeout=10 -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$OUT/crash-plan-" \
+  "$OUT/corpus-plan" native/fuzz/corpus/plan 2>&1 | grep -E "^#[0-9]+ *(DONE|INITED)|stat::|ERROR|SUMMARY|fuzz_plan:|Test unit written" || true
+if ls "$OUT"/crash-plan-* >/dev/null 2>&1; then echo "fuzz_plan: CRASH (see $OUT/crash-plan-*)"; exit 1; fi
+echo "== fuzz_obj: ${SECS}s"
+PY=/usr/bin/python3
+[ -x build/venv-fuzz/bin/python ] && PY=build/venv-fuzz/bin/python
+PYTHONPATH=python "$PY" native/fuzz/fuzz_obj.py --seconds "$SECS" --corpus native/fuzz/corpus/obj --out "$OUT" 2>&1 \
+  | grep -E "^fuzz_obj|^#[0-9]+ *(DONE|INITED)|stat::|Error|Traceback|^  |CRASH|Test unit written" || true
+if ls "$OUT"/crash-obj-* >/dev/null 2>&1; then echo "fuzz_obj: CRASH (see $OUT/crash-obj-*)"; exit 1; fi
+echo "fuzz.sh: no crash"

@@ -10,7 +10,7 @@ PY=${PYTHON:-/usr/bin/python3}
 export PATH="$PATH:/usr/local/cuda/bin"
 extra=()
 if command -v nvcc >/dev/null 2>&1; then
-  extra+=(-DCMAKE_CUDA_COMPILER="$(command -v nvcc)")
+  extra+=(-DSMOOTHFFD_CUDA=ON -DCMAKE_CUDA_COMPILER="$(command -v nvcc)")
 fi
 pyb=$("$PY" -c 'import pybind11; print(pybind11.get_cmake_dir())' 2>/dev/null || true)
 [ -n "$pyb" ] && extra+=(-Dpybind11_DIR="$pyb")

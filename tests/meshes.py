@@ -132,3 +132,24 @@ def bulge_twist(lattice, bulge=0.25, twist_degrees=45):
     cp = lattice.control_points.copy()
     cp *= 1 + bulge * np.exp(-np.sum(cp ** 2, axis=-1, keepdims=True))
     return twist_lattice(lattice.with_control_points(cp), twist_degrees)
+
+
+def uv_sphere(segments=32, rings=16):
+    """Blender-style UV sphere with float32 coordinates: its meridian vertices sit about 4e-8
+    off the x = 0 / y = 0 planes instead of on them, as Blender's do."""
+    V = [[0, 0, 1]]
+    for i in range(1, rings):
+        th = np.float32(np.pi * i / rings)
+        for j in range(segments):
+            ph = np.float32(2 * np.pi * j / segments)
+            V.append([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
+    V.append([0, 0, -1])
+    V = np.array(V, np.float32).astype(np.float64)
+    F = [[0, 1 + j, 1 + (j + 1) % segments] for j in range(segments)]
+    for i in range(rings - 2):
+        for j in range(segments):
+            a, b = 1 + i * segments + j, 1 + i * segments + (j + 1) % segments
+            F += [[a, a + segments, b + segments], [a, b + segments, b]]
+    last, base = len(V) - 1, 1 + (rings - 2) * segments
+    F += [[base + j, last, base + (j + 1) % segments] for j in range(segments)]
+    return V, np.array(F)

@@ -152,3 +152,22 @@ def test_blender_lattice_rotated_watertight_and_exact_at_vertices(interp):
         np.testing.assert_allclose(r.positions[:len(w)], expected, atol=1e-5 * 2.4)
         assert np.all(edge_counts(r.triangles) == 2)
         assert np.all(np.isfinite(r.corner_normals))
+
+
+def test_float32_vertices_near_knot_planes_make_no_slivers():
+    """A float32 UV sphere in a centred lattice: meridian vertices lie within float32 noise of
+    the x = 0 and y = 0 knot planes. They count as on the planes: no zero-area triangles, no
+    duplicate output positions (Blender 3.4 would split its smooth shading at them)."""
+    import reference as ref
+    from meshes import uv_sphere
+
+    V, F = uv_sphere()
+    rest = ref.blender_rest((3, 3, 3), -1.01, 1.01)
+    pts = rest + 0.05 * np.random.default_rng(9).normal(size=rest.shape)
+    for L in (1, 3):
+        r = smoothffd.deform(smoothffd.Mesh(V, F), smoothffd.BlenderLattice(rest, pts), level=L)
+        P = r.positions[r.triangles]
+        area = np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1) / 2
+        assert area.min() > 1e-5
+        assert len(np.unique(np.round(r.positions, 6), axis=0)) == len(r.positions)
+        assert np.all(edge_counts(r.triangles) == 2)

@@ -150,8 +150,15 @@ ClipResult clip_to_knot_boxes(const std::vector<double>& X, const std::vector<in
   std::array<double, 3> tol;
   for (int a = 0; a < 3; ++a) {
     planes[a] = lattice.axes[a].planes();
-    double span = planes[a].empty() ? 1.0 : planes[a].back() - planes[a].front();
-    tol[a] = 1e-10 * (1.0 + span + (planes[a].empty() ? 0.0 : std::fabs(planes[a].back())));
+    // Vertices this close to a plane count as on it: meshes made in float32 (Blender's) put
+    // "on-plane" vertices some 1e-8 off it, and cutting there would leave near-duplicate clip
+    // vertices and zero-area slivers. 1e-5 of the smallest knot spacing is far below anything
+    // visible and far above float32 noise.
+    double spacing = 1.0;
+    for (size_t i = 1; i < planes[a].size(); ++i)
+      spacing = std::min(spacing, planes[a][i] - planes[a][i - 1]);
+    double mag = planes[a].empty() ? 0.0 : std::max(std::fabs(planes[a].front()), std::fabs(planes[a].back()));
+    tol[a] = std::max(1e-5 * spacing, 1e-12 * (1.0 + mag));
   }
   std::vector<Poly> polys, next;
   for (int t = 0; t < T; ++t) {

@@ -60,8 +60,11 @@ def vase(segments=12):
 
 def chess_pawn(segments=16):
     """A pawn: a base with sharp rims, a shaft, a sharp collar and a round head."""
-    head = [(0.36 * math.sin(t), 1.78 - 0.36 * math.cos(t), False)
-            for t in np.linspace(0.55, np.pi, 6)]
+    # The head meets the neck ring at about 120 degrees: that ring is sharp, as Blender's auto
+    # smooth (30 degrees) would mark it. Left smooth, the averaged normal there is nearly
+    # perpendicular to the ring and any PN-style smoothing folds the ring (docs/algorithm.md).
+    head = [(0.36 * math.sin(t), 1.78 - 0.36 * math.cos(t), i == 0)
+            for i, t in enumerate(np.linspace(0.55, np.pi, 6))]
     profile = [(0.72, 0.0, True), (0.72, 0.16, True), (0.6, 0.24, False), (0.56, 0.32, True),
                (0.46, 0.36, True), (0.36, 0.55, False), (0.26, 0.95, False), (0.22, 1.25, False),
                (0.42, 1.33, True), (0.42, 1.41, True), (0.24, 1.47, False)] + head

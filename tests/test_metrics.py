@@ -6,19 +6,10 @@ import pytest
 
 
 def _import_pure(name):
-    """Import a pure-Python submodule even when the native core is not built: the package's
-    __init__ needs smoothffd._core, so fall back to a bare package shell around the folder."""
+    """Pure-Python submodules import without the native core (smoothffd/__init__.py)."""
     import importlib
-    import sys
-    import types
 
-    try:
-        return importlib.import_module(f"smoothffd.{name}")
-    except ImportError:
-        pkg = types.ModuleType("smoothffd")
-        pkg.__path__ = [str(pathlib.Path(__file__).resolve().parents[1] / "python" / "smoothffd")]
-        sys.modules["smoothffd"] = pkg
-        return importlib.import_module(f"smoothffd.{name}")
+    return importlib.import_module(f"smoothffd.{name}")
 
 
 metrics = _import_pure("metrics")

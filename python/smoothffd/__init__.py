@@ -2,23 +2,30 @@
 
 Deforms every triangle of a mesh, and its normal field, into cubic Bézier patches under a
 B-spline volume or a Blender lattice. See docs/api.md.
+
+The pure-Python parts (`smoothffd.io`, `smoothffd.lattice_json`, `smoothffd.metrics`) import
+without the native module; everything else needs it and says how to build it when it is missing.
 """
+
+import sys
+
+__version__ = "0.1.0"
+__all__ = ["BSplineLattice", "BlenderLattice", "Mesh", "Deformer", "Result", "deform",
+           "cuda_status"]
 
 try:
     from . import _core  # noqa: F401
-except ImportError as exc:  # pragma: no cover - exercised only without a build
-    import sys
-
-    raise ImportError(
+except ImportError as exc:  # the pure-Python submodules still work
+    _CORE_ERROR = (
         "smoothffd: the native module smoothffd._core is missing or does not load "
         f"({exc}). Build it with `bash scripts/build.sh` (it must match this Python, "
-        f"{sys.version_info.major}.{sys.version_info.minor})."
-    ) from exc
+        f"{sys.version_info.major}.{sys.version_info.minor}).")
 
-from .deform import Deformer, Result, cuda_status, deform  # noqa: E402
-from .lattice import BlenderLattice, BSplineLattice  # noqa: E402
-from .mesh import Mesh  # noqa: E402
-
-__all__ = ["BSplineLattice", "BlenderLattice", "Mesh", "Deformer", "Result", "deform",
-           "cuda_status"]
-__version__ = "0.1.0"
+    def __getattr__(name):
+        if name in __all__:
+            raise ImportError(_CORE_ERROR)
+        raise AttributeError(f"module 'smoothffd' has no attribute {name!r}")
+else:
+    from .deform import Deformer, Result, cuda_status, deform  # noqa: F401
+    from .lattice import BlenderLattice, BSplineLattice  # noqa: F401
+    from .mesh import Mesh  # noqa: F401

@@ -422,3 +422,35 @@ def test_obj_fuzz_seed_corpus_only_value_errors():
         C = len(d.corner_vertices)
         assert d.face_offsets[-1] == C and (np.diff(d.face_offsets) >= 3).all()
         assert C == 0 or 0 <= d.corner_vertices.min() <= d.corner_vertices.max() < len(d.positions)
+
+
+# --------------------------------------------------------------------------------------
+# Magnitudes: the core computes in float32.
+
+@pytest.mark.parametrize("scale", [1e20, 1e30, 1e36])
+def test_huge_lattice_displacements_stay_finite(scale):
+    """Vectors above ~1.8e19 overflowed the squared length in normalisation (0 * inf = NaN):
+    a lattice scaled by 1e20 gave NaN positions. Fixed in core/hd.hpp normalized_or."""
+    mesh = sphere_mesh(2)
+    lat = smoothffd.BSplineLattice.identity([-1.1] * 3, [1.1] * 3, shape=(4, 4, 4))
+    cp = lat.control_points * scale * np.array([1, -1.3, 0.7])
+    r = smoothffd.deform(mesh, lat.with_control_points(cp), level=2, device="cpu")
+    assert np.isfinite(r.positions).all() and np.isfinite(r.corner_normals).all()
+    assert np.allclose(np.linalg.norm(r.corner_normals, axis=-1), 1, atol=1e-4)
+
+
+def test_magnitudes_beyond_float32_are_refused():
+    mesh = sphere_mesh(1)
+    lat = smoothffd.BSplineLattice.identity([-1.1] * 3, [1.1] * 3, shape=(4, 4, 4))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no overflow warnings on the way to the error either
+        for scale in (1e38, 1e39, 1e300):
+            with pytest.raises(ValueError, match="float32 range"):
+                smoothffd.deform(mesh, lat.with_control_points(lat.control_points * scale), level=2,
+                                 device="cpu")
+            m2 = smoothffd.Mesh(mesh.positions * scale, (mesh.corner_vertices, mesh.face_offsets))
+            with pytest.raises(ValueError, match="mesh: positions up to"):
+                smoothffd.Deformer(m2, lat, level=2, device="cpu")
+        with pytest.raises(ValueError, match="uvs: values out of the float32 range"):
+            smoothffd.Mesh(mesh.positions, (mesh.corner_vertices, mesh.face_offsets),
+                           uvs=np.full((len(mesh.corner_vertices), 2), 1e39))

@@ -98,7 +98,15 @@ class Target:
         if C == 0:
             return
         if self.Mesh is not None:
-            self.Mesh(d.positions, (cv, fo), d.corner_normals, d.uvs)  # must not raise
+            # Must not raise, except for normals/uvs beyond float32 (the Mesh stores float32),
+            # which must be refused with a message saying so.
+            f32 = np.finfo(np.float32).max
+            big = any(a is not None and np.abs(a).max(initial=0) > f32 for a in (d.corner_normals, d.uvs))
+            try:
+                self.Mesh(d.positions, (cv, fo), d.corner_normals, d.uvs)
+            except ValueError as exc:
+                if not (big and "out of the float32 range" in str(exc)):
+                    raise
         # Round trip: the writer's output reads back with the same faces.
         self.io.write_obj(self.out, d.positions, (cv, fo), d.corner_normals, d.uvs)
         e = self.io.read_obj(self.out)

@@ -7,6 +7,7 @@
 #include <cstring>
 #include <random>
 
+#include "smoothffd/core/hd.hpp"
 #include "smoothffd/eval/cpu_evaluator.hpp"
 #include "test_util.hpp"
 
@@ -143,4 +144,22 @@ TEST(CpuEvaluator, CollapsingLatticeGivesFiniteOutput) {
   for (float x : o.pos) EXPECT_NEAR(x, 0.0f, 1e-5f);
   for (float x : o.nrm) ASSERT_TRUE(std::isfinite(x));
   expect_unit_normals(o);
+}
+
+TEST(CpuEvaluator, HugeDisplacementsGiveFiniteOutput) {
+  // Regression: vectors above ~1.8e19 overflowed the squared length in normalized_or and
+  // 0 * inf made NaN normals, then NaN positions (core/hd.hpp).
+  EXPECT_NEAR(length(normalized_or(v3(3e19f, -2e19f, 1e30f), v3(0, 0, 1))), 1.0f, 1e-6f);  // was 0
+  V3 n = normalized_or(v3(INFINITY, 0, 0), v3(0, 0, 1));
+  EXPECT_EQ(n.z, 1.0f);
+  InputMesh m = octahedron(0.47, 0.52, 0.55, 0.4);
+  LatticeSpec s = bspline_box(2, 4);
+  auto plan = plan_of(m, s, 3);
+  for (float scale : {1e20f, 1e30f, 1e36f}) {
+    std::vector<float> D(3 * (size_t)s.count());
+    for (size_t i = 0; i < D.size(); ++i) D[i] = scale * float((i * 7919) % 13) / 13.0f * (i % 2 ? 1 : -1);
+    Out o = run(plan, D);
+    for (float x : o.pos) ASSERT_TRUE(std::isfinite(x)) << scale;
+    expect_unit_normals(o);
+  }
 }

@@ -14,7 +14,8 @@ def float_array(value, name, shape=None, dtype=np.float64, allow_nonfinite=False
     if value is None:
         raise TypeError(f"{name}: expected an array, got None")
     try:
-        arr = np.array(value, dtype=dtype, copy=True, order="C")
+        with np.errstate(over="ignore"):  # an overflowing cast is reported below, by name
+            arr = np.array(value, dtype=dtype, copy=True, order="C")
     except (TypeError, ValueError) as exc:
         raise TypeError(f"{name}: expected a numeric array ({exc})") from None
     if arr.dtype == object:
@@ -24,6 +25,13 @@ def float_array(value, name, shape=None, dtype=np.float64, allow_nonfinite=False
             want = "(" + ", ".join("N" if s is None else str(s) for s in shape) + ")"
             raise ValueError(f"{name}: expected shape {want}, got {arr.shape}")
     if not allow_nonfinite and arr.size and not np.all(np.isfinite(arr)):
+        # Finite input that overflowed the target dtype (e.g. 1e39 into float32, an OBJ uv of
+        # 2e116: found by native/fuzz/fuzz_obj.py) is not "NaN or Inf": say what it is.
+        with np.errstate(all="ignore"):
+            src = np.asarray(value, dtype=np.float64)
+        if src.shape == arr.shape and np.all(np.isfinite(src)):
+            raise ValueError(f"{name}: values out of the {arr.dtype} range "
+                             f"(largest magnitude {np.abs(src).max():.3g})")
         raise ValueError(f"{name}: contains NaN or Inf")
     return arr
 

@@ -55,6 +55,21 @@ def _estimate_bytes(mesh, level):
     return int(t * per_tri * 2)  # plan copy + result
 
 
+# The core computes in float32: magnitudes near its limit (3.4e38) overflow to inf/NaN in the
+# output (a lattice scaled by 1e38, a mesh at 1e38: found by tests/test_robustness.py). Refuse
+# them by name instead of returning a silently broken mesh; 1e37 leaves headroom for the sums.
+_F32_LIMIT = 1e37
+
+
+def _control_values_f32(lat):
+    values = lat.control_values().reshape(-1, 3)
+    big = float(np.abs(values).max(initial=0.0))
+    if not big <= _F32_LIMIT:
+        raise ValueError(f"control_points/points: displacements up to {big:.3g} exceed the "
+                         f"float32 range the core computes in (limit {_F32_LIMIT:g})")
+    return np.ascontiguousarray(values, dtype=np.float32)
+
+
 class Deformer:
     """Plans a mesh for a lattice structure once; `deform` then only pushes control values.
 
@@ -73,6 +88,10 @@ class Deformer:
             raise ValueError(f"device: expected one of {_DEVICES}, got {device!r}")
         self.threads = positive_int(threads, "threads", 0, 4096)
         self.mesh = mesh
+        big = float(np.abs(mesh.positions).max(initial=0.0))
+        if not big <= _F32_LIMIT:
+            raise ValueError(f"mesh: positions up to {big:.3g} exceed the float32 range the core "
+                             f"computes in (limit {_F32_LIMIT:g})")
         self.requested_device = device
         # The evaluators keep per-frame buffers, and native work runs without the GIL: calls
         # from several threads take turns instead of racing on those buffers.
@@ -158,7 +177,7 @@ class Deformer:
         if lat.structure_key() != self._key:
             self._plan_for(lat)
         self.lattice = lat
-        values = np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32)
+        values = _control_values_f32(lat)
         t0 = time.perf_counter()
         try:
             positions, normals, stages = self._evaluator.evaluate(values)
@@ -197,7 +216,7 @@ class Deformer:
             if lat.structure_key() != self._key:
                 self._plan_for(lat)
             self.lattice = lat
-            values = np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32)
+            values = _control_values_f32(lat)
             return dict(self._evaluator.evaluate_device(values))
 
 

@@ -59,9 +59,11 @@ def cpu_time(plan, vals, reps):
     return float(np.median(ts)), stages[int(np.argsort(ts)[len(ts) // 2])], ev.threads
 
 
-VARIANTS = [("SMOOTHFFD_FUSED_LANES", "1"), ("SMOOTHFFD_FUSED_LANES", "8"),
-            ("SMOOTHFFD_FUSED_BLOCKS", "3"), ("SMOOTHFFD_FUSED_BLOCKS", "4"),
-            ("SMOOTHFFD_SAMPLE_BLOCKS", "1"), ("SMOOTHFFD_SAMPLE_BLOCKS", "2"), ("SMOOTHFFD_SAMPLE_BLOCKS", "3")]
+REGS = ("SMOOTHFFD_FUSED_FIT", "regs")
+# Each variant: environment switches read by CudaEvaluator (see cuda_evaluator.cu, Impl).
+VARIANTS = [(("SMOOTHFFD_FUSED_LANES", "16"),), (("SMOOTHFFD_FUSED_BLOCKS", "4"),), (("SMOOTHFFD_FUSED_LANES", "4"),),
+            (("SMOOTHFFD_FUSED_LANES", "4"), ("SMOOTHFFD_FUSED_BLOCKS", "1")), (REGS,),
+            (("SMOOTHFFD_SAMPLE_BLOCKS", "fixed"),), (("SMOOTHFFD_SAMPLE_BLOCKS", "1"),)]
 
 
 def gpu_case(name, P, F, N, lat, level, iters, cpu_reps, log, variants=False):
@@ -84,14 +86,16 @@ def gpu_case(name, P, F, N, lat, level, iters, cpu_reps, log, variants=False):
     if variants:
         # Kernel variants (environment switches read by CudaEvaluator): fit lanes a patch,
         # register caps (minimum blocks an SM) of the sampling and fused kernels.
-        for var, val in VARIANTS:
-            os.environ[var] = val
+        for variant in VARIANTS:
+            for var, val in variant:
+                os.environ[var] = val
             ev2 = _core.CudaEvaluator(plan, "fused")
-            key = f"{var.lower().replace('smoothffd_', '')}={val}"
+            key = ",".join(f"{var.lower().replace('smoothffd_', '')}={val}" for var, val in variant)
             row.setdefault("variants", {})[key] = ev2.benchmark(vals, iters)
             log(f"  {name} L={level} fused {key}: {row['variants'][key]}")
             del ev2
-            os.environ.pop(var)
+            for var, _ in variant:
+                os.environ.pop(var)
     # Whole frame with the copy back to numpy (corner normals built on the device).
     ev.path = "fused"
     ev.evaluate(vals)

@@ -178,15 +178,26 @@ def test_levels(level, path):
     check(cube(sharp=True, cuts=1), bspline(rng, degree=(2, 3, 2)), level=level, path=path)
 
 
-@pytest.mark.parametrize("variant", [("SMOOTHFFD_SAMPLE_BLOCKS", "1"), ("SMOOTHFFD_SAMPLE_BLOCKS", "2"), ("SMOOTHFFD_SAMPLE_BLOCKS", "3"),
-                                     ("SMOOTHFFD_FUSED_BLOCKS", "3"), ("SMOOTHFFD_FUSED_BLOCKS", "4"),
-                                     ("SMOOTHFFD_FUSED_LANES", "1"), ("SMOOTHFFD_FUSED_LANES", "8")])
+REGS = ("SMOOTHFFD_FUSED_FIT", "regs")
+
+
+@pytest.mark.parametrize("variant", [(("SMOOTHFFD_SAMPLE_BLOCKS", "1"),), (("SMOOTHFFD_SAMPLE_BLOCKS", "2"),),
+                                     (("SMOOTHFFD_SAMPLE_BLOCKS", "3"),), (("SMOOTHFFD_SAMPLE_BLOCKS", "4"),),
+                                     (("SMOOTHFFD_FUSED_LANES", "4"), ("SMOOTHFFD_FUSED_BLOCKS", "1")),
+                                     (("SMOOTHFFD_FUSED_LANES", "4"), ("SMOOTHFFD_FUSED_BLOCKS", "5")),
+                                     (("SMOOTHFFD_SAMPLE_BLOCKS", "fixed"),), (("SMOOTHFFD_FUSED_LANES", "4"),),
+                                     (("SMOOTHFFD_FUSED_LANES", "16"),), (("SMOOTHFFD_FUSED_BLOCKS", "4"),), (REGS,),
+                                     (REGS, ("SMOOTHFFD_FUSED_BLOCKS", "3")), (REGS, ("SMOOTHFFD_FUSED_BLOCKS", "4")),
+                                     (REGS, ("SMOOTHFFD_FUSED_LANES", "1")), (REGS, ("SMOOTHFFD_FUSED_LANES", "8"))],
+                         ids=lambda v: ",".join(f"{k.lower().replace('smoothffd_', '')}={x}" for k, x in v))
 def test_kernel_variants(variant, monkeypatch):
-    """The register-capped / lane variants the benchmark compares compute the same result."""
-    monkeypatch.setenv(*variant)
+    """The register-capped / lane / fit variants the benchmark compares compute the same result."""
+    for kv in variant:
+        monkeypatch.setenv(*kv)
     rng = np.random.default_rng(21)
     check(cube(sharp=True), bspline(rng, degree=(3, 2, 1)), level=7, path="fused")
     check(icosphere(2), blender(rng, ("CATMULL_ROM", "LINEAR", "BSPLINE")), level=5, path="fused")
+    check(icosphere(2), bspline(rng), level=10, path="fused")  # degree 2: the C = 3 sampling kernels
 
 
 @pytest.mark.parametrize("path", PATHS)

@@ -222,6 +222,17 @@ __global__ void __launch_bounds__(256) k_sample_fixed(PlanView pv, FrameView fv,
   if (s < pv.sub_vertices) tessellate_position(pv, fv, s);
 }
 
+// The same with a register cap from MINB blocks of 256 an SM. (An explicit MINB of 1 is not
+// the same as none: __launch_bounds__(256, 1) compiled k_sample_fixed<3> to 127 registers,
+// __launch_bounds__(256) to 74.)
+template <int C, int MINB>
+__global__ void __launch_bounds__(256, MINB) k_sample_fixed_capped(PlanView pv, FrameView fv, const float* __restrict__ D) {
+  int s = blockIdx.x * blockDim.x + threadIdx.x;
+  if (s >= pv.samples) return;
+  sample_point_c<C>(pv, D, s, fv.sample_value + 3 * (long long)s, fv.sample_jacobian + 9 * (long long)s);
+  if (s < pv.sub_vertices) tessellate_position(pv, fv, s);
+}
+
 template <int MINB>
 __global__ void __launch_bounds__(256, MINB) k_sample_capped(PlanView pv, FrameView fv, const float* __restrict__ D) {
   sample_body(pv, fv, D);
@@ -233,6 +244,41 @@ __global__ void k_edge(PlanView pv, FrameView fv) {
 }
 
 // ---------------------------------------------------------------- fused path
+
+// Tessellation of a block's PB fitted patches from shared memory, one thread a (patch, grid
+// point): positions of the output vertices the patch owns, normals of its render vertices.
+template <int PB, int LANES>
+__device__ __forceinline__ void tessellate_block(const PlanView& pv, const FrameView& fv, const GridInfo* __restrict__ gi,
+                                                 const float (*ctrl)[2][30], const int (*sedge)[3],
+                                                 const uint8_t* sflags, const PatchRender* srender, int base,
+                                                 long long render_shift, float* __restrict__ normals) {
+  const int G = pv.grid, L = pv.level;
+  const int np = min(PB, pv.patches - base);
+  const int items = np * G;
+  const long long interior0 = pv.sub_vertices + (long long)pv.edges * (L - 1);
+  const int IG = (L - 1) * (L - 2) / 2;
+  for (int i = threadIdx.x; i < items; i += PB * LANES) {
+    int q = i / G, gp = i - q * G;
+    const float* B = pv.grid_basis + 10 * gp;
+    GridInfo t = gi[gp];
+    uint8_t f = sflags[q];
+    long long o = -1, oi = interior0 + (long long)(base + q) * IG + t.which;
+    if (t.kind == 2) {
+      o = oi;
+    } else if (t.kind == 1) {
+      if ((f >> t.which) & 1) {
+        int m = ((f >> (3 + t.which)) & 1) ? L - t.step : t.step;
+        o = pv.sub_vertices + (long long)sedge[q][t.which] * (L - 1) + (m - 1);
+      }
+    }
+    long long r = render_written(pv, srender[q], t, t.kind == 1 && ((f >> (3 + t.which)) & 1), oi, render_shift);
+    if (r >= 0) {
+      const float* cn = ctrl[q][1];
+      store3(normals + 3 * r, unit_patch_normal(eval_cubic(B, cn), cn));
+    }
+    if (o >= 0) store3(fv.positions + 3 * o, eval_cubic(B, ctrl[q][0]));
+  }
+}
 
 // LANES threads a patch fit it (columns split among them, partial sums combined by warp
 // shuffles) into shared memory; then the block tessellates its PB patches, one thread a
@@ -301,32 +347,90 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     srender[lp] = prender[p];
   }
   __syncthreads();
-  const int G = pv.grid, L = pv.level;
-  const int np = min(PB, pv.patches - base);
-  const int items = np * G;
-  const long long interior0 = pv.sub_vertices + (long long)pv.edges * (L - 1);
-  const int IG = (L - 1) * (L - 2) / 2;
-  for (int i = threadIdx.x; i < items; i += PB * LANES) {
-    int q = i / G, gp = i - q * G;
-    const float* B = pv.grid_basis + 10 * gp;
-    GridInfo t = gi[gp];
-    uint8_t f = sflags[q];
-    long long o = -1, oi = interior0 + (long long)(base + q) * IG + t.which;
-    if (t.kind == 2) {
-      o = oi;
-    } else if (t.kind == 1) {
-      if ((f >> t.which) & 1) {
-        int m = ((f >> (3 + t.which)) & 1) ? L - t.step : t.step;
-        o = pv.sub_vertices + (long long)sedge[q][t.which] * (L - 1) + (m - 1);
+  tessellate_block<PB, LANES>(pv, fv, gi, ctrl, sedge, sflags, srender, base, render_shift, normals);
+}
+
+// Same fit and tessellation with fewer live registers (the default): the LANES threads of a
+// patch accumulate only the centre row over the free columns (M_r's boundary rows are zero
+// there, as in fit_patch_into), stage the deformed samples and normals of the 9 constraint
+// columns in shared memory, then share the 10 x 6 products of M_r's last 9 columns among
+// them; finish_patch (stages.hpp) runs on one lane from shared memory. About half the
+// registers of k_fit_tessellate (20 control points live per lane), so more blocks an SM hide
+// the latency of the sample gathers.
+template <int PB, int LANES, int MINB>
+__global__ void __launch_bounds__(PB* LANES, MINB)
+    k_fit_tessellate_staged(PlanView pv, FrameView fv, const GridInfo* __restrict__ gi,
+                            const uint8_t* __restrict__ owns, const PatchRender* __restrict__ prender,
+                            long long render_shift, float* __restrict__ normals) {
+  static_assert(32 % LANES == 0, "lanes of a patch must share a warp");
+  __shared__ float ctrl[PB][2][30];
+  __shared__ float stage[PB][9][6];  // constraint column j: x (0-2), n (3-5)
+  __shared__ float mcon[10][9];      // M_r's last 9 columns
+  __shared__ int sedge[PB][3];
+  __shared__ uint8_t sflags[PB];  // bits 0-2: owns edge k; bits 3-5: edge k reversed
+  __shared__ PatchRender srender[PB];
+  const int base = blockIdx.x * PB;
+  const int lp = threadIdx.x / LANES, lane = threadIdx.x % LANES;
+  const int p = base + lp;
+  const int K = pv.columns, K0 = K - 9;
+  for (int i = threadIdx.x; i < 90; i += PB * LANES) mcon[i / 9][i % 9] = pv.fit_matrix[(i / 9) * K + K0 + i % 9];
+  V3 gc = v3(0, 0, 0), nc = v3(0, 0, 0);  // centre row over the free columns
+  if (p < pv.patches) {
+    V3 rn[3];
+    for (int k = 0; k < 3; ++k) rn[k] = load3(pv.patch_render_normal + 9 * (long long)p + 3 * k);
+    for (int k = lane; k < K; k += LANES) {
+      V3 x, n;
+      fit_column(pv, fv, p, k, rn, x, n);
+      if (k < K0) {
+        float m = pv.fit_matrix[kCentre * K + k];
+        gc += m * x;
+        nc += m * n;
+      } else {
+        float* st = stage[lp][k - K0];
+        store3(st, x);
+        store3(st + 3, n);
       }
     }
-    long long r = render_written(pv, srender[q], t, t.kind == 1 && ((f >> (3 + t.which)) & 1), oi, render_shift);
-    if (r >= 0) {
-      const float* cn = ctrl[q][1];
-      store3(normals + 3 * r, unit_patch_normal(eval_cubic(B, cn), cn));
-    }
-    if (o >= 0) store3(fv.positions + 3 * o, eval_cubic(B, ctrl[q][0]));
   }
+#pragma unroll
+  for (int off = 1; off < LANES; off <<= 1) {
+    gc.x += __shfl_xor_sync(0xffffffffu, gc.x, off);
+    gc.y += __shfl_xor_sync(0xffffffffu, gc.y, off);
+    gc.z += __shfl_xor_sync(0xffffffffu, gc.z, off);
+    nc.x += __shfl_xor_sync(0xffffffffu, nc.x, off);
+    nc.y += __shfl_xor_sync(0xffffffffu, nc.y, off);
+    nc.z += __shfl_xor_sync(0xffffffffu, nc.z, off);
+  }
+  __syncthreads();  // stage and mcon written
+  if (p < pv.patches) {
+    // Output j = 6 r + c (row r, component c: 0-2 geometry, 3-5 normal), lanes interleaved.
+    for (int j = lane; j < 60; j += LANES) {
+      const int r = j / 6, c = j - 6 * r;
+      float acc = 0.0f;
+      if (r == kCentre) acc = c == 0 ? gc.x : c == 1 ? gc.y : c == 2 ? gc.z : c == 3 ? nc.x : c == 4 ? nc.y : nc.z;
+#pragma unroll
+      for (int q = 0; q < 9; ++q) acc += mcon[r][q] * stage[lp][q][c];
+      ctrl[lp][c / 3][3 * r + c % 3] = acc;
+    }
+  }
+  __syncwarp();
+  if (p < pv.patches && lane == 0) {
+    V3 g[10];
+#pragma unroll
+    for (int r = 0; r < 10; ++r) g[r] = load3(ctrl[lp][0] + 3 * r);
+    finish_patch(pv, fv, p, g);
+#pragma unroll
+    for (int r = 0; r < 10; ++r) store3(ctrl[lp][0] + 3 * r, g[r]);
+    uint8_t f = owns[p];
+    for (int k = 0; k < 3; ++k) {
+      sedge[lp][k] = pv.patch_edge[3 * p + k];
+      f |= uint8_t(pv.patch_edge_reversed[3 * p + k] ? 8u << k : 0u);
+    }
+    sflags[lp] = f;
+    srender[lp] = prender[p];
+  }
+  __syncthreads();
+  tessellate_block<PB, LANES>(pv, fv, gi, ctrl, sedge, sflags, srender, base, render_shift, normals);
 }
 
 // ---------------------------------------------------------------- cuBLAS path
@@ -520,7 +624,7 @@ std::pair<bool, std::string> cuda_status() {
 
 struct CudaEvaluator::Impl {
   Path path = kFused;
-  int fused_lanes = 4;  // threads fitting one patch (SMOOTHFFD_FUSED_LANES: 1, 4 or 8)
+  int fused_lanes = 0;  // threads fitting one patch (SMOOTHFFD_FUSED_LANES); 0: the fit's default
   DeviceArena arena;
   PlanView pv{};
   FrameView fv{};
@@ -529,11 +633,18 @@ struct CudaEvaluator::Impl {
   PatchRender* prender = nullptr;  // P
   long long render_shift = 0;      // R - N
   // Sampling kernel (SMOOTHFFD_SAMPLE_BLOCKS): 0 (default) k_sample_fixed<C> with C = the
-  // plan's largest term count when C <= 4, else as 3; 1 k_sample (no register cap); 2, 3
-  // k_sample_capped<MINB>. See docs/benchmarks.md for the measured variants.
+  // plan's largest term count when C <= 4, else as 3, except C = 3 (degree 2), which runs
+  // k_sample_fixed_capped<3, 4> (64 registers, measured faster); "fixed" (-1): always the
+  // uncapped k_sample_fixed<C>; 1 k_sample (no register cap); 2, 3 k_sample_capped<MINB>;
+  // 4 as the default. See docs/benchmarks.md for the measured variants.
   int sample_blocks = 0;
   int max_terms = 6;               // largest count / degree + 1 over the plan's pieces
-  int fused_blocks = 1;            // k_fit_tessellate's MINB (SMOOTHFFD_FUSED_BLOCKS: 1, 3 or 4)
+  // Fit in the fused kernel (SMOOTHFFD_FUSED_FIT): 0 (default, "staged") k_fit_tessellate_staged
+  // (SMOOTHFFD_FUSED_LANES 8 (default, MINB 1 or 4), 16 (MINB 1) or 4 (SMOOTHFFD_FUSED_BLOCKS
+  // = MINB 1, 4 (default) or 5)); 1 ("regs") k_fit_tessellate, 20 control points in registers
+  // (LANES 1, 4 (default), 8; MINB 1, 3, 4).
+  int fused_fit = 0;
+  int fused_blocks = 0;            // 0: the default of the chosen fit (see above)
   float* D = nullptr;
   float* normals = nullptr;  // R x 3 (render vertices)
   // cuBLAS path scratch (allocated on first use)
@@ -581,9 +692,11 @@ struct CudaEvaluator::Impl {
     CK(cudaMemcpyAsync(D, h_D.ptr, nD * sizeof(float), cudaMemcpyHostToDevice, stream));
     mark("sampling");
     if (pv.samples > 0) {
-      const bool fixed = sample_blocks == 0;
+      const bool fixed = sample_blocks <= 0;
       if (fixed && max_terms <= 2)
         k_sample_fixed<2><<<blocks_for(pv.samples, T), T, 0, stream>>>(pv, fv, D);
+      else if (max_terms == 3 && (sample_blocks == 4 || sample_blocks == 0))
+        k_sample_fixed_capped<3, 4><<<blocks_for(pv.samples, T), T, 0, stream>>>(pv, fv, D);
       else if (fixed && max_terms == 3)
         k_sample_fixed<3><<<blocks_for(pv.samples, T), T, 0, stream>>>(pv, fv, D);
       else if (fixed && max_terms == 4)
@@ -608,9 +721,22 @@ struct CudaEvaluator::Impl {
     if (path == kFused) {
       mark("fit_tessellate");
       const long long sh = render_shift;
-      if (fused_lanes == 1)
+      const int lanes = fused_lanes > 0 ? fused_lanes : fused_fit == 0 ? 8 : 4;
+      if (fused_fit == 0 && lanes == 16)
+        k_fit_tessellate_staged<16, 16, 1><<<blocks_for(pv.patches, 16), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
+      else if (fused_fit == 0 && lanes == 8 && fused_blocks == 4)
+        k_fit_tessellate_staged<32, 8, 4><<<blocks_for(pv.patches, 32), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
+      else if (fused_fit == 0 && lanes != 4)
+        k_fit_tessellate_staged<32, 8, 1><<<blocks_for(pv.patches, 32), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
+      else if (fused_fit == 0 && fused_blocks == 1)
+        k_fit_tessellate_staged<64, 4, 1><<<blocks_for(pv.patches, 64), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
+      else if (fused_fit == 0 && fused_blocks == 5)
+        k_fit_tessellate_staged<64, 4, 5><<<blocks_for(pv.patches, 64), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
+      else if (fused_fit == 0)
+        k_fit_tessellate_staged<64, 4, 4><<<blocks_for(pv.patches, 64), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
+      else if (lanes == 1)
         k_fit_tessellate<128, 1, 1><<<blocks_for(pv.patches, 128), 128, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
-      else if (fused_lanes == 8)
+      else if (lanes == 8)
         k_fit_tessellate<32, 8, 1><<<blocks_for(pv.patches, 32), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
       else if (fused_blocks == 3)
         k_fit_tessellate<64, 4, 3><<<blocks_for(pv.patches, 64), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
@@ -662,8 +788,10 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
   Impl& m = *impl_;
   m.path = parse_path(path);
   if (const char* lanes = std::getenv("SMOOTHFFD_FUSED_LANES")) m.fused_lanes = std::atoi(lanes);
-  if (const char* b = std::getenv("SMOOTHFFD_SAMPLE_BLOCKS")) m.sample_blocks = std::atoi(b);
+  if (const char* b = std::getenv("SMOOTHFFD_SAMPLE_BLOCKS"))
+    m.sample_blocks = std::string(b) == "fixed" ? -1 : std::atoi(b);
   if (const char* b = std::getenv("SMOOTHFFD_FUSED_BLOCKS")) m.fused_blocks = std::atoi(b);
+  if (const char* ff = std::getenv("SMOOTHFFD_FUSED_FIT")) m.fused_fit = std::string(ff) == "regs" ? 1 : 0;
   m.max_terms = 1;
   for (const AxisPieceF& pc : plan_->pieces) m.max_terms = std::max(m.max_terms, std::max(pc.count, pc.degree + 1));
   const Plan& p = *plan_;

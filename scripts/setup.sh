@@ -5,7 +5,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 need=(cmake g++ make pybind11-dev libeigen3-dev python3-dev python3-numpy python3-pytest
-      python3-matplotlib libgtest-dev)
+      python3-matplotlib libgtest-dev clang libclang-rt-14-dev)
 missing=()
 for p in "${need[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")

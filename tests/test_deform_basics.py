@@ -171,3 +171,19 @@ def test_float32_vertices_near_knot_planes_make_no_slivers():
         assert area.min() > 1e-5
         assert len(np.unique(np.round(r.positions, 6), axis=0)) == len(r.positions)
         assert np.all(edge_counts(r.triangles) == 2)
+
+
+def test_out_reuses_the_previous_result():
+    rng = np.random.default_rng(10)
+    mesh = sphere_mesh(2)
+    lat = random_bspline_lattice(rng, [-1.2] * 3, [1.2] * 3, (4, 4, 4), 2, 0.1)
+    d = smoothffd.Deformer(mesh, lat, level=4, device="cpu")
+    first = d.deform()
+    lat2 = lat.with_control_points(lat.control_points + 0.05)
+    again = d.deform(lat2.control_points, out=first)
+    assert again.positions is first.positions and again.corner_normals is first.corner_normals
+    fresh = smoothffd.deform(mesh, lat2, level=4, device="cpu")
+    np.testing.assert_array_equal(again.positions, fresh.positions)
+    np.testing.assert_array_equal(again.corner_normals, fresh.corner_normals)
+    with pytest.raises(TypeError, match="out"):
+        d.deform(out=np.zeros(3))

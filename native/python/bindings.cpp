@@ -49,12 +49,27 @@ py::dict times_dict(const StageTimes& t) {
 }
 
 // Evaluates D with any backend into fresh numpy arrays.
-py::tuple run_evaluator(Evaluator& ev, const Arr<float>& D) {
+// An output array to fill: `given` when it is a writable, C-contiguous float32 array of the
+// right shape (a previous frame's result: no fresh pages to fault in), else a new one.
+py::array_t<float> output_array(const py::object& given, std::vector<py::ssize_t> shape, const char* name) {
+  if (given.is_none()) return py::array_t<float>(shape);
+  if (!py::isinstance<py::array_t<float>>(given))
+    throw std::invalid_argument(std::string("out: ") + name + " must be a float32 numpy array");
+  auto a = given.cast<py::array_t<float>>();
+  bool ok = a.ndim() == (py::ssize_t)shape.size() && a.writeable() &&
+            (a.flags() & py::array::c_style);
+  for (size_t i = 0; ok && i < shape.size(); ++i) ok = a.shape(i) == shape[i];
+  if (!ok) throw std::invalid_argument(std::string("out: ") + name + " has the wrong shape or is not writable and C-contiguous");
+  return a;
+}
+
+py::tuple run_evaluator(Evaluator& ev, const Arr<float>& D, const py::object& out_positions,
+                        const py::object& out_normals) {
   const Plan& plan = ev.plan();
   if (D.ndim() != 2 || D.shape(1) != 3 || D.shape(0) != (py::ssize_t)plan.dims[0] * plan.dims[1] * plan.dims[2])
     throw std::invalid_argument("control values: expected an (nu*nv*nw, 3) array matching the plan");
-  py::array_t<float> pos({(py::ssize_t)plan.output_vertices, (py::ssize_t)3});
-  py::array_t<float> nrm({(py::ssize_t)plan.output_triangles, (py::ssize_t)3, (py::ssize_t)3});
+  py::array_t<float> pos = output_array(out_positions, {(py::ssize_t)plan.output_vertices, 3}, "positions");
+  py::array_t<float> nrm = output_array(out_normals, {(py::ssize_t)plan.output_triangles, 3, 3}, "corner_normals");
   const float* d = D.data();
   float* p = pos.mutable_data();
   float* n = nrm.mutable_data();
@@ -192,8 +207,11 @@ PYBIND11_MODULE(_core, m) {
            }),
            py::arg("plan"), py::arg("threads") = 0, py::keep_alive<1, 2>())
       .def_property_readonly("threads", &CpuEvaluator::threads)
-      .def("evaluate", [](CpuEvaluator& ev, Arr<float> D) { return run_evaluator(ev, D); },
-           py::arg("values"));
+      .def("evaluate",
+           [](CpuEvaluator& ev, Arr<float> D, py::object positions, py::object corner_normals) {
+             return run_evaluator(ev, D, positions, corner_normals);
+           },
+           py::arg("values"), py::arg("positions") = py::none(), py::arg("corner_normals") = py::none());
 
 #ifdef SMOOTHFFD_HAVE_CUDA
   m.attr("cuda_compiled") = true;
@@ -209,8 +227,11 @@ PYBIND11_MODULE(_core, m) {
                     "'fused' or 'cublas' (default: $SMOOTHFFD_CUDA_PATH, else fused)")
       .def_property_readonly("output_bytes", &CudaEvaluator::output_bytes)
       .def_property_readonly("device_bytes", &CudaEvaluator::device_bytes)
-      .def("evaluate", [](CudaEvaluator& ev, Arr<float> D) { return run_evaluator(ev, D); },
-           py::arg("values"))
+      .def("evaluate",
+           [](CudaEvaluator& ev, Arr<float> D, py::object positions, py::object corner_normals) {
+             return run_evaluator(ev, D, positions, corner_normals);
+           },
+           py::arg("values"), py::arg("positions") = py::none(), py::arg("corner_normals") = py::none())
       .def("evaluate_device",
            [](CudaEvaluator& ev, Arr<float> D) {
              const Plan& plan = ev.plan();

@@ -153,17 +153,21 @@ class Deformer:
                     a.setflags(write=False)
         return self._static
 
-    def deform(self, lattice_or_points=None):
+    def deform(self, lattice_or_points=None, out=None):
         """Deform with new control values.
 
         Pass a lattice (replanned automatically if its structure differs from the planned
         one) or just its new points: (nu, nv, nw, 3) `points` for a BlenderLattice, control
         points for a BSplineLattice. None re-evaluates the current lattice.
+
+        out: a previous Result of this Deformer whose `positions` and `corner_normals` are
+        overwritten in place and returned again (per-frame loops: no fresh 100+ MB arrays to
+        fault in). Ignored when the plan changed.
         """
         with self._lock:
-            return self._deform(lattice_or_points)
+            return self._deform(lattice_or_points, out)
 
-    def _deform(self, lattice_or_points):
+    def _deform(self, lattice_or_points, out=None):
         lat = lattice_or_points
         if lat is None:
             lat = self.lattice
@@ -179,13 +183,20 @@ class Deformer:
         self.lattice = lat
         values = _control_values_f32(lat)
         t0 = time.perf_counter()
+        bufs = {}
+        if out is not None:
+            if not isinstance(out, Result):
+                raise TypeError(f"out: expected a smoothffd.Result, got {type(out).__name__}")
+            if out.positions.shape == (self.plan.output_vertices, 3) and \
+                    out.corner_normals.shape == (self.plan.output_triangles, 3, 3):
+                bufs = dict(positions=out.positions, corner_normals=out.corner_normals)
         try:
-            positions, normals, stages = self._evaluator.evaluate(values)
+            positions, normals, stages = self._evaluator.evaluate(values, **bufs)
         except (RuntimeError, MemoryError) as exc:
             if self.device != "cuda":
                 raise
             self._fall_back_to_cpu(exc)  # e.g. out of device memory for the copy back
-            positions, normals, stages = self._evaluator.evaluate(values)
+            positions, normals, stages = self._evaluator.evaluate(values, **bufs)
         total = (time.perf_counter() - t0) * 1e3
         s = self._static_arrays()
         p = self.plan

@@ -13,6 +13,7 @@ import os
 import numpy as np
 import pytest
 
+import meshes
 import smoothffd
 from smoothffd import _core
 
@@ -25,31 +26,8 @@ PATHS = ("fused", "cublas")
 # ----------------------------------------------------------------------------- meshes (numpy)
 
 def icosphere(subdivisions=2, radius=1.0):
-    t = (1 + 5 ** 0.5) / 2
-    V = [[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t], [0, -1, -t],
-         [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]]
-    F = [[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
-         [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
-         [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]]
-    V = [np.array(v, float) / np.linalg.norm(v) for v in V]
-    for _ in range(subdivisions):
-        cache, out = {}, []
-
-        def mid(a, b):
-            key = (min(a, b), max(a, b))
-            if key not in cache:
-                m = V[a] + V[b]
-                V.append(m / np.linalg.norm(m))
-                cache[key] = len(V) - 1
-            return cache[key]
-
-        for a, b, c in F:
-            ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
-            out += [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
-        F = out
-    V = np.array(V) * radius
-    F = np.array(F, dtype=np.int64)
-    return smoothffd.Mesh(V, F, corner_normals=(V / radius)[F.reshape(-1)])
+    V, F = meshes.icosphere(subdivisions)
+    return smoothffd.Mesh(V * radius, F, corner_normals=V[F.reshape(-1)])
 
 
 def cube(size=0.8, sharp=True, cuts=2):

@@ -7,7 +7,7 @@ import numpy as np
 
 from . import compat, core, latticeio, logic, meshio, nodegroup
 
-OWNER_KEY = "smooth_ffd_owner"          # result object -> source object (an ID pointer)
+OWNER_KEY = "smooth_ffd_owner"          # result object -> source object's name_full (a string)
 MODIFIER_KEY = "smooth_ffd_modifier"    # result object -> modifier name
 TOPOLOGY_KEY = "smooth_ffd_topology"    # result mesh -> plan that built its topology
 NORMALS_KEY = "smooth_ffd_normals"      # result mesh -> "exact" or "fast"
@@ -69,18 +69,39 @@ def result_object(obj, mod, create=True):
     at the original's result, so it gets its own here instead of overwriting that one.
     """
     ro = compat.get_modifier_input(mod, "Result Object")
-    if ro is not None and ro.type == 'MESH' and ro.get(OWNER_KEY) == obj \
-            and ro.get(MODIFIER_KEY) == mod.name:
+    if ro is not None and ro.type == 'MESH' and ro.get(MODIFIER_KEY) == mod.name \
+            and _owned_by(ro, obj):
         return ro
     if not create:
         return None
     name = f"{obj.name}.{mod.name}.result"
     me = bpy.data.meshes.new(name)
     ro = bpy.data.objects.new(name, me)   # never linked to a scene: hidden, yet saved (mod uses it)
-    ro[OWNER_KEY] = obj
+    ro[OWNER_KEY] = obj.name_full
     ro[MODIFIER_KEY] = mod.name
     compat.set_modifier_input(mod, "Result Object", ro)
     return ro
+
+
+def _owned_by(ro, obj):
+    """Whether ro is obj's own result (not the original's, reached through a duplicate).
+
+    The owner is kept by name, not as an ID pointer: a pointer is a user of the object, and
+    with the modifier pointing back at the result the two kept each other alive, so an
+    object deleted in the UI (bpy.ops.object.delete) stayed in the file, unlinked, with its
+    result (found by tests/blender/check_robustness.py). Only this modifier uses ro: it is
+    ours (also after a rename, recorded here). Shared (a duplicate): the owner's name decides.
+    """
+    owner = ro.get(OWNER_KEY)
+    if isinstance(owner, bpy.types.ID):          # files saved before: a pointer, converted
+        if owner != obj:
+            return False
+        ro[OWNER_KEY] = owner = obj.name_full
+    if ro.users <= 1:
+        if owner != obj.name_full:
+            ro[OWNER_KEY] = obj.name_full
+        return True
+    return owner == obj.name_full
 
 
 def set_status(obj, mod, text, ok):

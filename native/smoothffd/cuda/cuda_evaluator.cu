@@ -183,35 +183,12 @@ __global__ void k_sample(PlanView pv, FrameView fv, const float* __restrict__ D)
 template <int C>
 __device__ __forceinline__ void sample_point_c(const PlanView& pv, const float* __restrict__ D, int s, float* F, float* J) {
   float p[3] = {pv.sample_position[3 * s], pv.sample_position[3 * s + 1], pv.sample_position[3 * s + 2]};
-  uint32_t packed = pv.sample_piece[s];
   int idx[3][C];
-  float w[3][C], dw[3][C];
-#pragma unroll
-  for (int a = 0; a < 3; ++a) {
-    const AxisPieceF& pc = pv.pieces[pv.axis_offset[a] + ((packed >> (10 * a)) & 1023u)];
-    const float* m = pv.param_map + 4 * a;
-    float t = ((m[0] * p[0] + m[1] * p[1] + m[2] * p[2] + m[3]) - pc.origin) * pc.inv_scale;
-    if (pc.degree == 0) t = 0.0f;
-#pragma unroll
-    for (int k = 0; k < C; ++k) {
-      float v = 0.0f, d = 0.0f;
-#pragma unroll
-      for (int q = C - 1; q >= 0; --q) {
-        if (q > pc.degree) continue;
-        d = d * t + v;
-        v = v * t + pc.coef[k][q];
-      }
-      idx[a][k] = pc.index[k];
-      w[a][k] = v;
-      dw[a][k] = d * pc.inv_scale;
-    }
-  }
-  float value[3], grad[9], A[9];
+  float w[3][C], dw[3][C], value[3], grad[9];
+  sample_weights<C>(pv, p, pv.sample_piece[s], idx, w, dw);
   tensor_eval_fixed<float, float, C, C, C>(idx[0], w[0], dw[0], idx[1], w[1], dw[1], idx[2], w[2], dw[2], D,
                                            pv.dims[1], pv.dims[2], value, grad);
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) A[3 * r + c] = pv.param_map[4 * r + c];
-  compose_deformation<float>(p, pv.sample_weight[s], value, grad, A, F, J);
+  finish_sample(pv, p, s, value, grad, F, J);
 }
 
 template <int C>

@@ -14,14 +14,14 @@
 
 namespace sffd {
 
-// 1. F(p) = p + w sum W(s(p)) D and J = dF/dp at sample s.
-SFFD_HD void sample_point(const PlanView& pv, const float* D, int s, float* F, float* J) {
-  float p[3] = {pv.sample_position[3 * s], pv.sample_position[3 * s + 1], pv.sample_position[3 * s + 2]};
-  uint32_t packed = pv.sample_piece[s];
-  // Loops over kMaxTerms (not the run-time term count) keep these arrays in registers on the
-  // GPU; terms beyond a piece's count get weight 0 (its coefficients are 0 there too).
-  int idx[3][kMaxTerms], count = 0;
-  float w[3][kMaxTerms], dw[3][kMaxTerms];
+// Per-axis weights of sample s with C terms an axis (C a compile-time size, so on the GPU the
+// arrays stay in registers; a loop over the run-time term count would put them in local
+// memory). Terms beyond a piece's count get weight 0: its coefficients are 0 there, and the
+// evaluators only use C >= every count of the plan. Returns the largest count of the three.
+template <int C>
+SFFD_HD int sample_weights(const PlanView& pv, const float p[3], uint32_t packed, int idx[3][C],
+                           float w[3][C], float dw[3][C]) {
+  int count = 0;
 SFFD_UNROLL
   for (int a = 0; a < 3; ++a) {
     const AxisPieceF& pc = pv.pieces[pv.axis_offset[a] + ((packed >> (10 * a)) & 1023u)];
@@ -30,10 +30,10 @@ SFFD_UNROLL
     if (pc.degree == 0) t = 0.0f;
     count = pc.count > count ? pc.count : count;
 SFFD_UNROLL
-    for (int k = 0; k < kMaxTerms; ++k) {
+    for (int k = 0; k < C; ++k) {
       float v = 0.0f, d = 0.0f;
 SFFD_UNROLL
-      for (int q = kMaxTerms - 1; q >= 0; --q) {
+      for (int q = C - 1; q >= 0; --q) {
         if (q > pc.degree) continue;
         d = d * t + v;
         v = v * t + pc.coef[k][q];
@@ -43,12 +43,27 @@ SFFD_UNROLL
       dw[a][k] = d * pc.inv_scale;
     }
   }
-  float value[3], grad[9], A[9];
-  tensor_eval<float, float>(idx[0], w[0], dw[0], idx[1], w[1], dw[1], idx[2], w[2], dw[2], count, D,
-                            pv.dims[1], pv.dims[2], value, grad);
+  return count;
+}
+
+// F = p + w value and J = I + w grad A at sample s (lattice/tensor_eval.hpp).
+SFFD_HD void finish_sample(const PlanView& pv, const float p[3], int s, const float value[3],
+                           const float grad[9], float* F, float* J) {
+  float A[9];
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) A[3 * r + c] = pv.param_map[4 * r + c];
   compose_deformation<float>(p, pv.sample_weight[s], value, grad, A, F, J);
+}
+
+// 1. F(p) = p + w sum W(s(p)) D and J = dF/dp at sample s.
+SFFD_HD void sample_point(const PlanView& pv, const float* D, int s, float* F, float* J) {
+  float p[3] = {pv.sample_position[3 * s], pv.sample_position[3 * s + 1], pv.sample_position[3 * s + 2]};
+  int idx[3][kMaxTerms];
+  float w[3][kMaxTerms], dw[3][kMaxTerms], value[3], grad[9];
+  int count = sample_weights<kMaxTerms>(pv, p, pv.sample_piece[s], idx, w, dw);
+  tensor_eval<float, float>(idx[0], w[0], dw[0], idx[1], w[1], dw[1], idx[2], w[2], dw[2], count, D,
+                            pv.dims[1], pv.dims[2], value, grad);
+  finish_sample(pv, p, s, value, grad, F, J);
 }
 
 // Moves control point c next to corner P: onto the tangent plane of the (averaged) normal at

@@ -259,6 +259,13 @@ def test_out_of_memory_is_memory_error():
     try:
         with pytest.raises(MemoryError, match="out of GPU memory"):
             _core.CudaEvaluator(plan)
+        # device="auto" continues on the CPU with a warning; device="cuda" raises.
+        with pytest.warns(RuntimeWarning, match="continuing on the CPU"):
+            auto = smoothffd.Deformer(icosphere(5), lat, level=16, device="auto")
+        assert auto.device == "cpu" and "CPU fallback" in auto.device_message
+        assert np.isfinite(auto.deform().positions).all()
+        with pytest.raises(MemoryError):
+            smoothffd.Deformer(icosphere(5), lat, level=16, device="cuda")
     finally:
         del hog
         torch.cuda.empty_cache()

@@ -122,10 +122,28 @@ double median(std::vector<double> v) {
 
 inline unsigned blocks_for(long long n, int threads) { return (unsigned)((n + threads - 1) / threads); }
 
-// Per grid point of the tessellation: kind (0 corner, 1 edge, 2 interior), which, step.
+// Per grid point of the tessellation: kind (0 corner, 1 edge, 2 interior), which, step; and
+// `order`: entry g holds the grid point at position g of the order tessellate_block walks
+// (the 3L boundary points first, then the interior points by `which`).
 struct GridInfo {
-  int kind, which, step, pad;
+  int kind, which, step, order;
 };
+
+// Writes v (one V3 a lane, lanes [0, count) valid) to dst[0 .. 3 count) with each store
+// instruction covering 32 consecutive floats: lane l stores floats l, l + 32, l + 64, fetched
+// from their owners by shuffles. A plain store3 per lane writes a warp's 384 bytes in three
+// strided passes, each touching every sector partially (three times the L2 write traffic).
+// Every lane of the warp must call it.
+__device__ __forceinline__ void store3_coalesced(float* __restrict__ dst, V3 v, int count) {
+  const int lane = threadIdx.x & 31;
+#pragma unroll
+  for (int r = 0; r < 3; ++r) {
+    const int f = lane + 32 * r, src = f / 3, c = f - 3 * src;
+    const float x = __shfl_sync(0xffffffffu, v.x, src), y = __shfl_sync(0xffffffffu, v.y, src),
+                z = __shfl_sync(0xffffffffu, v.z, src);
+    if (src < count) dst[f] = c == 0 ? x : c == 1 ? y : z;
+  }
+}
 
 // Output vertex of (patch p, grid point g) when p writes it, else -1 (corners are written by
 // the sampling kernel; an edge point by the patch that owns it in the plan).
@@ -231,29 +249,44 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
                                                  long long render_shift, float* __restrict__ normals) {
   const int G = pv.grid, L = pv.level;
   const int np = min(PB, pv.patches - base);
-  const int items = np * G;
   const long long interior0 = pv.sub_vertices + (long long)pv.edges * (L - 1);
-  const int IG = (L - 1) * (L - 2) / 2;
+  const int IG = (L - 1) * (L - 2) / 2, NB = G - IG;
+  // Corners and edge points: one thread a (patch, point), scattered to their owners' slots.
+  const int items = np * NB;
   for (int i = threadIdx.x; i < items; i += PB * LANES) {
-    int q = i / G, gp = i - q * G;
+    int q = i / NB, gp = gi[i - q * NB].order;
     const float* B = pv.grid_basis + 10 * gp;
     GridInfo t = gi[gp];
     uint8_t f = sflags[q];
-    long long o = -1, oi = interior0 + (long long)(base + q) * IG + t.which;
-    if (t.kind == 2) {
-      o = oi;
-    } else if (t.kind == 1) {
-      if ((f >> t.which) & 1) {
-        int m = ((f >> (3 + t.which)) & 1) ? L - t.step : t.step;
-        o = pv.sub_vertices + (long long)sedge[q][t.which] * (L - 1) + (m - 1);
-      }
+    long long o = -1;
+    if (t.kind == 1 && ((f >> t.which) & 1)) {
+      int m = ((f >> (3 + t.which)) & 1) ? L - t.step : t.step;
+      o = pv.sub_vertices + (long long)sedge[q][t.which] * (L - 1) + (m - 1);
     }
-    long long r = render_written(pv, srender[q], t, t.kind == 1 && ((f >> (3 + t.which)) & 1), oi, render_shift);
+    long long r = render_written(pv, srender[q], t, t.kind == 1 && ((f >> (3 + t.which)) & 1), -1, render_shift);
     if (r >= 0) {
       const float* cn = ctrl[q][1];
       store3(normals + 3 * r, unit_patch_normal(eval_cubic(B, cn), cn));
     }
     if (o >= 0) store3(fv.positions + 3 * o, eval_cubic(B, ctrl[q][0]));
+  }
+  // Interior points: the block's are one contiguous run of output (and render) vertices, so
+  // each warp takes 32 consecutive ones and writes them with coalesced stores.
+  const int n_int = np * IG, warps = PB * LANES / 32;
+  const long long o0 = interior0 + (long long)base * IG;
+  for (int j0 = (threadIdx.x / 32) * 32; j0 < n_int; j0 += warps * 32) {
+    const int j = j0 + (threadIdx.x & 31);
+    V3 x = v3(0, 0, 0), n = v3(0, 0, 0);
+    if (j < n_int) {
+      const int q = j / IG, gp = gi[NB + j - q * IG].order;
+      const float* B = pv.grid_basis + 10 * gp;
+      const float* cn = ctrl[q][1];
+      x = eval_cubic(B, ctrl[q][0]);
+      n = unit_patch_normal(eval_cubic(B, cn), cn);
+    }
+    const int count = min(32, n_int - j0);
+    store3_coalesced(fv.positions + 3 * (o0 + j0), x, count);
+    store3_coalesced(normals + 3 * (o0 + j0 + render_shift), n, count);
   }
 }
 
@@ -409,6 +442,8 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
   __syncthreads();
   tessellate_block<PB, LANES>(pv, fv, gi, ctrl, sedge, sflags, srender, base, render_shift, normals);
 }
+
+#include "smoothffd/cuda/inline_kernels.cuh"
 
 // ---------------------------------------------------------------- cuBLAS path
 
@@ -599,6 +634,29 @@ std::pair<bool, std::string> cuda_status() {
 
 // ================================================================= CudaEvaluator
 
+// Whether the constraint columns of every patch are its corners and its edges' 1/3 and 2/3
+// samples in the order k_inline reads them (plan/fit_matrix.hpp), checked once per plan.
+bool constraint_columns_as_expected(const Plan& p) {
+  const int K = p.columns, K0 = K - 9;
+  if (K0 < 0) return false;
+  for (int q = 0; q < p.patches; ++q) {
+    const int* col = p.patch_samples.data() + (size_t)q * K + K0;
+    for (int k = 0; k < 3; ++k) {
+      const int e = p.patch_edge[3 * q + k];
+      const bool rev = p.patch_edge_reversed[3 * q + k];
+      const int ka = rev ? (k + 1) % 3 : k, kb = rev ? k : (k + 1) % 3;
+      if (col[k] != p.patch_vertex[3 * q + k]) return false;
+      if (p.edge_vertex[2 * e] != p.patch_vertex[3 * q + ka] || p.edge_vertex[2 * e + 1] != p.patch_vertex[3 * q + kb])
+        return false;
+      if (col[3 + 2 * k] != p.edge_constraint[2 * e + (rev ? 1 : 0)] ||
+          col[4 + 2 * k] != p.edge_constraint[2 * e + (rev ? 0 : 1)])
+        return false;
+    }
+  }
+  return true;
+}
+
+
 struct CudaEvaluator::Impl {
   Path path = kFused;
   int fused_lanes = 0;  // threads fitting one patch (SMOOTHFFD_FUSED_LANES); 0: the fit's default
@@ -616,12 +674,23 @@ struct CudaEvaluator::Impl {
   // 4 as the default. See docs/benchmarks.md for the measured variants.
   int sample_blocks = 0;
   int max_terms = 6;               // largest count / degree + 1 over the plan's pieces
-  // Fit in the fused kernel (SMOOTHFFD_FUSED_FIT): 0 (default, "staged") k_fit_tessellate_staged
-  // (SMOOTHFFD_FUSED_LANES 8 (default, MINB 1 or 4), 16 (MINB 1) or 4 (SMOOTHFFD_FUSED_BLOCKS
-  // = MINB 1, 4 (default) or 5)); 1 ("regs") k_fit_tessellate, 20 control points in registers
-  // (LANES 1, 4 (default), 8; MINB 1, 3, 4).
-  int fused_fit = 0;
+  // Fit in the fused kernel (SMOOTHFFD_FUSED_FIT): -1 (default, "inline") k_inline, samples
+  // evaluated inside the fit (lanes and register caps: see run_inline_c) when inline_ok,
+  // else as "staged";
+  // 0 ("staged") k_sample + k_edge + k_fit_tessellate_staged (SMOOTHFFD_FUSED_LANES 8
+  // (default, MINB 1 or 4), 16 (MINB 1) or 4 (SMOOTHFFD_FUSED_BLOCKS = MINB 1, 4 (default)
+  // or 5)); 1 ("regs") k_fit_tessellate, 20 control points in registers (LANES 1, 4
+  // (default), 8; MINB 1, 3, 4).
+  int fused_fit = -1;
   int fused_blocks = 0;            // 0: the default of the chosen fit (see above)
+  // Inline path tables: usable when the plan has at most 4 terms an axis, its lattice tables
+  // fit in shared memory and the constraint columns are where k_inline expects them.
+  bool inline_ok = false;
+  size_t plan_pieces = 0;
+  uint8_t* corner_owns = nullptr;  // P: bit k, the patch writes corner k's output position
+  int* loose = nullptr;            // sub-vertices in no patch
+  int loose_count = 0;
+  ColumnMap column_map{};
   float* D = nullptr;
   float* normals = nullptr;  // R x 3 (render vertices)
   // cuBLAS path scratch (allocated on first use)
@@ -653,7 +722,103 @@ struct CudaEvaluator::Impl {
     Q = arena.alloc<float>(G * 6 * P);
   }
 
+  // Corner ownership and loose vertices of the inline path, and whether it applies.
+  void build_inline_tables(const Plan& p) {
+    const InlineLattice lat{nullptr, p.dims[0] * p.dims[1] * p.dims[2], (int)p.pieces.size()};
+    inline_ok = max_terms <= 4 && lat.shared_bytes() <= kInlineSharedBytes && p.columns - 9 <= kMaxInlineGrid &&
+                constraint_columns_as_expected(p);
+    if (!inline_ok) return;
+    // Constraint columns that are grid points with the same sample in every patch.
+    const int K = p.columns, K0 = K - 9;
+    std::fill(std::begin(column_map.con_of), std::end(column_map.con_of), int8_t(-1));
+    column_map.n_extra = 0;
+    for (int j = 0; j < 9; ++j) {
+      int dup = -1;
+      for (int k = 0; k < K0 && dup < 0; ++k) {
+        bool same = true;
+        for (int c = 0; c < 3; ++c) same = same && p.column_bary[3 * k + c] == p.column_bary[3 * (K0 + j) + c];
+        for (int q = 0; same && q < p.patches; ++q)
+          same = p.patch_samples[(size_t)q * K + k] == p.patch_samples[(size_t)q * K + K0 + j];
+        if (same) dup = k;
+      }
+      if (dup >= 0)
+        column_map.con_of[dup] = int8_t(j);
+      else
+        column_map.extra[column_map.n_extra++] = int8_t(j);
+    }
+    std::vector<uint8_t> mine((size_t)p.patches, 0);
+    std::vector<char> seen((size_t)p.sub_vertices, 0);
+    for (int q = 0; q < p.patches; ++q)
+      for (int k = 0; k < 3; ++k) {
+        const int v = p.patch_vertex[3 * q + k];
+        if (!seen[v]) {
+          seen[v] = 1;
+          mine[q] |= uint8_t(1u << k);
+        }
+      }
+    std::vector<int> lv;
+    for (int v = 0; v < p.sub_vertices; ++v)
+      if (!seen[v]) lv.push_back(v);
+    corner_owns = arena.upload(mine);
+    loose_count = (int)lv.size();
+    if (loose_count) loose = arena.upload(lv);
+  }
+
   void stage_D(const float* Dh) { std::memcpy(h_D.ptr, Dh, nD * sizeof(float)); }
+
+  // The inline fused path (see fused_fit and inline_kernels.cuh): one kernel, plus one for
+  // loose vertices when the mesh has any.
+  template <int C, class Mark>
+  void run_inline_c(Mark& mark) {
+    const InlineLattice lat{D, (int)(nD / 3), (int)plan_pieces};
+    const size_t smem = lat.shared_bytes();
+    if (loose_count > 0) {
+      mark("loose_vertices");
+      k_loose_vertices<C><<<blocks_for(loose_count, 256), 256, 0, stream>>>(pv, fv, D, loose, loose_count);
+      CK_LAUNCH(k_loose_vertices);
+    }
+    mark("sample_fit_tessellate");
+    if (pv.patches > 0) {
+      const long long sh = render_shift;
+      const int lanes = fused_lanes > 0 ? fused_lanes : 4;
+      // Uncapped, these kernels take ~80 (C = 2) to ~130 (C = 4) registers. For C = 3 the
+      // default is 4 lanes a patch, 32 patches a block of 128, MINB 5 (~100 registers, no
+      // spills: measured fastest, docs/benchmarks.md); SMOOTHFFD_FUSED_BLOCKS = 4 or 6 with 4
+      // lanes, and SMOOTHFFD_FUSED_LANES = 8 with FUSED_BLOCKS = 2, 3 (default) or 4, for
+      // comparison. C = 2 and 4 run 8 lanes, MINB 2.
+      const int minb = fused_blocks;
+#define SFFD_INLINE(PB, LANES, MINB)                                                              \
+  k_inline<C, PB, LANES, MINB><<<blocks_for(pv.patches, PB), PB * LANES, smem, stream>>>( \
+      pv, fv, lat, column_map, grid_info, owns, corner_owns, prender, sh, normals)
+      if constexpr (C != 3)
+        SFFD_INLINE(32, 8, 2);
+      else if (lanes == 4 && minb == 4)
+        SFFD_INLINE(32, 4, 4);
+      else if (lanes == 4 && minb == 6)
+        SFFD_INLINE(32, 4, 6);
+      else if (lanes == 4)
+        SFFD_INLINE(32, 4, 5);
+      else if (minb == 2)
+        SFFD_INLINE(32, 8, 2);
+      else if (minb == 4)
+        SFFD_INLINE(32, 8, 4);
+      else
+        SFFD_INLINE(32, 8, 3);
+#undef SFFD_INLINE
+      CK_LAUNCH(k_inline);
+    }
+    mark(nullptr);
+  }
+
+  template <class Mark>
+  void run_inline(Mark& mark) {
+    if (max_terms <= 2)
+      run_inline_c<2>(mark);
+    else if (max_terms == 3)
+      run_inline_c<3>(mark);
+    else
+      run_inline_c<4>(mark);
+  }
 
   // Enqueues the device stages; records events[i] before stage i and returns the stage names
   // (events.size() == names.size() + 1 used).
@@ -667,6 +832,10 @@ struct CudaEvaluator::Impl {
     const int T = 256;
     mark("upload");
     CK(cudaMemcpyAsync(D, h_D.ptr, nD * sizeof(float), cudaMemcpyHostToDevice, stream));
+    if (path == kFused && fused_fit < 0 && inline_ok) {
+      run_inline(mark);
+      return;
+    }
     mark("sampling");
     if (pv.samples > 0) {
       const bool fixed = sample_blocks <= 0;
@@ -698,18 +867,18 @@ struct CudaEvaluator::Impl {
     if (path == kFused) {
       mark("fit_tessellate");
       const long long sh = render_shift;
-      const int lanes = fused_lanes > 0 ? fused_lanes : fused_fit == 0 ? 8 : 4;
-      if (fused_fit == 0 && lanes == 16)
+      const int lanes = fused_lanes > 0 ? fused_lanes : fused_fit <= 0 ? 8 : 4;
+      if (fused_fit <= 0 && lanes == 16)
         k_fit_tessellate_staged<16, 16, 1><<<blocks_for(pv.patches, 16), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
-      else if (fused_fit == 0 && lanes == 8 && fused_blocks == 4)
+      else if (fused_fit <= 0 && lanes == 8 && fused_blocks == 4)
         k_fit_tessellate_staged<32, 8, 4><<<blocks_for(pv.patches, 32), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
-      else if (fused_fit == 0 && lanes != 4)
+      else if (fused_fit <= 0 && lanes != 4)
         k_fit_tessellate_staged<32, 8, 1><<<blocks_for(pv.patches, 32), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
-      else if (fused_fit == 0 && fused_blocks == 1)
+      else if (fused_fit <= 0 && fused_blocks == 1)
         k_fit_tessellate_staged<64, 4, 1><<<blocks_for(pv.patches, 64), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
-      else if (fused_fit == 0 && fused_blocks == 5)
+      else if (fused_fit <= 0 && fused_blocks == 5)
         k_fit_tessellate_staged<64, 4, 5><<<blocks_for(pv.patches, 64), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
-      else if (fused_fit == 0)
+      else if (fused_fit <= 0)
         k_fit_tessellate_staged<64, 4, 4><<<blocks_for(pv.patches, 64), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
       else if (lanes == 1)
         k_fit_tessellate<128, 1, 1><<<blocks_for(pv.patches, 128), 128, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
@@ -768,7 +937,8 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
   if (const char* b = std::getenv("SMOOTHFFD_SAMPLE_BLOCKS"))
     m.sample_blocks = std::string(b) == "fixed" ? -1 : std::atoi(b);
   if (const char* b = std::getenv("SMOOTHFFD_FUSED_BLOCKS")) m.fused_blocks = std::atoi(b);
-  if (const char* ff = std::getenv("SMOOTHFFD_FUSED_FIT")) m.fused_fit = std::string(ff) == "regs" ? 1 : 0;
+  if (const char* ff = std::getenv("SMOOTHFFD_FUSED_FIT"))
+    m.fused_fit = std::string(ff) == "regs" ? 1 : std::string(ff) == "staged" ? 0 : -1;
   m.max_terms = 1;
   for (const AxisPieceF& pc : plan_->pieces) m.max_terms = std::max(m.max_terms, std::max(pc.count, pc.degree + 1));
   const Plan& p = *plan_;
@@ -811,7 +981,19 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
   // Which patch writes each edge's tessellation points, and the grid point table.
   TessellationTables tt = build_tessellation(p.level);
   std::vector<GridInfo> gi(tt.points.size());
-  for (size_t g = 0; g < gi.size(); ++g) gi[g] = {tt.points[g].kind, tt.points[g].which, tt.points[g].step, 0};
+  for (size_t g = 0; g < gi.size(); ++g) gi[g] = {tt.points[g].kind, tt.points[g].which, tt.points[g].step, -1};
+  {
+    const int IG = (p.level - 1) * (p.level - 2) / 2, NB = (int)gi.size() - IG;
+    int nb = 0;
+    for (size_t g = 0; g < gi.size(); ++g) {
+      if (gi[g].kind == 2 && gi[g].which >= 0 && gi[g].which < IG)
+        gi[NB + gi[g].which].order = (int)g;
+      else if (gi[g].kind != 2 && nb < NB)
+        gi[nb++].order = (int)g;
+    }
+    for (const GridInfo& q : gi)
+      if (q.order < 0) throw std::logic_error("CudaEvaluator: unexpected tessellation grid");
+  }
   std::vector<uint8_t> owns((size_t)p.patches, 0);
   const long long edge_points = (long long)p.edges * (p.level - 1);
   for (long long i = 0; i < edge_points; ++i) {
@@ -823,6 +1005,8 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
   m.owns = a.upload(owns);
   m.prender = a.upload(build_patch_render(p, tt));
   m.render_shift = (long long)p.render_vertices - p.output_vertices;
+  m.plan_pieces = p.pieces.size();
+  m.build_inline_tables(p);
 
   const long long S = p.samples, E = p.edges, P = p.patches, N = p.output_vertices, G = p.grid;
   m.nD = 3 * (size_t)p.dims[0] * p.dims[1] * p.dims[2];

@@ -18,13 +18,15 @@ namespace sffd {
 // arrays stay in registers; a loop over the run-time term count would put them in local
 // memory). Terms beyond a piece's count get weight 0: its coefficients are 0 there, and the
 // evaluators only use C >= every count of the plan. Returns the largest count of the three.
+// `pieces` replaces pv.pieces when given (the CUDA kernels pass a copy in shared memory).
 template <int C>
 SFFD_HD int sample_weights(const PlanView& pv, const float p[3], uint32_t packed, int idx[3][C],
-                           float w[3][C], float dw[3][C]) {
+                           float w[3][C], float dw[3][C], const AxisPieceF* pieces = nullptr) {
+  const AxisPieceF* pcs = pieces ? pieces : pv.pieces;
   int count = 0;
 SFFD_UNROLL
   for (int a = 0; a < 3; ++a) {
-    const AxisPieceF& pc = pv.pieces[pv.axis_offset[a] + ((packed >> (10 * a)) & 1023u)];
+    const AxisPieceF& pc = pcs[pv.axis_offset[a] + ((packed >> (10 * a)) & 1023u)];
     const float* m = pv.param_map + 4 * a;
     float t = ((m[0] * p[0] + m[1] * p[1] + m[2] * p[2] + m[3]) - pc.origin) * pc.inv_scale;
     if (pc.degree == 0) t = 0.0f;
@@ -86,27 +88,35 @@ SFFD_HD V3 deformed_adjust_normal(const PlanView& pv, const float* J, int p, int
   return normalized_or(cofactor_apply(J, n), n);
 }
 
-// 2. Edge control points from the four constraint samples (cubic interpolation at 0, 1/3,
-// 2/3, 1), then adjusted at both ends. Once per edge, so both patches on it share the result.
-SFFD_HD void adjust_edge(const PlanView& pv, const FrameView& fv, int e) {
-  int a = pv.edge_vertex[2 * e], b = pv.edge_vertex[2 * e + 1];
-  V3 Pa = load3(fv.sample_value + 3 * (long long)a), Pb = load3(fv.sample_value + 3 * (long long)b);
-  V3 Q1 = load3(fv.sample_value + 3 * (long long)pv.edge_constraint[2 * e]);
-  V3 Q2 = load3(fv.sample_value + 3 * (long long)pv.edge_constraint[2 * e + 1]);
+// 2. Edge control points of edge e from its end samples Pa, Pb (Jacobians Ja, Jb) and the two
+// constraint samples Q1, Q2 (cubic interpolation at 0, 1/3, 2/3, 1), then adjusted at both
+// ends: c[0] next to a, c[1] next to b. Once per edge, so both patches on it share the result.
+SFFD_HD void edge_control_points(const PlanView& pv, int e, V3 Pa, V3 Pb, V3 Q1, V3 Q2, const float* Ja,
+                                 const float* Jb, V3 c[2]) {
   const float s6 = 1.0f / 6.0f;
-  V3 c[2] = {s6 * (-5.0f * Pa + 18.0f * Q1 - 9.0f * Q2 + 2.0f * Pb),
-             s6 * (2.0f * Pa - 9.0f * Q1 + 18.0f * Q2 - 5.0f * Pb)};
+  c[0] = s6 * (-5.0f * Pa + 18.0f * Q1 - 9.0f * Q2 + 2.0f * Pb);
+  c[1] = s6 * (2.0f * Pa - 9.0f * Q1 + 18.0f * Q2 - 5.0f * Pb);
   uint8_t flags = pv.edge_flags[e];
   if (!(flags & kNonManifold)) {
     int p0 = pv.edge_patch[2 * e], p1 = pv.edge_patch[2 * e + 1];
     for (int end = 0; end < 2; ++end) {
-      int v = end ? b : a;
-      const float* J = fv.sample_jacobian + 9 * (long long)v;
+      const float* J = end ? Jb : Ja;
       V3 n0 = deformed_adjust_normal(pv, J, p0, pv.edge_slot[4 * e + end]);
       V3 n1 = p1 >= 0 ? deformed_adjust_normal(pv, J, p1, pv.edge_slot[4 * e + 2 + end]) : n0;
       c[end] = adjust_control_point(c[end], end ? Pb : Pa, n0, n1, p1 >= 0, (flags >> end) & 1);
     }
   }
+}
+
+// adjust_edge from the frame's sample buffers.
+SFFD_HD void adjust_edge(const PlanView& pv, const FrameView& fv, int e) {
+  int a = pv.edge_vertex[2 * e], b = pv.edge_vertex[2 * e + 1];
+  V3 Pa = load3(fv.sample_value + 3 * (long long)a), Pb = load3(fv.sample_value + 3 * (long long)b);
+  V3 Q1 = load3(fv.sample_value + 3 * (long long)pv.edge_constraint[2 * e]);
+  V3 Q2 = load3(fv.sample_value + 3 * (long long)pv.edge_constraint[2 * e + 1]);
+  V3 c[2];
+  edge_control_points(pv, e, Pa, Pb, Q1, Q2, fv.sample_jacobian + 9 * (long long)a,
+                      fv.sample_jacobian + 9 * (long long)b, c);
   store3(fv.edge_control + 6 * (long long)e, c[0]);
   store3(fv.edge_control + 6 * (long long)e + 3, c[1]);
 }
@@ -118,32 +128,50 @@ SFFD_HD void adjust_edge(const PlanView& pv, const FrameView& fv, int e) {
 // of the six edge control points: PN triangles' b111 = E + (E - V)/2 written as an update, so
 // a rest-pose patch with exact normals reproduces the PN centre (a rest-pose icosphere comes
 // out far closer to its sphere than with the fitted centre; see tests/test_sphere.py).
+// Deformed, interpolated render normal of column k from the sample's Jacobian J: the patch's
+// rest corner normals rn interpolated at the column's barycentric point, cofactor-deformed.
+SFFD_HD V3 deformed_column_normal(const PlanView& pv, int k, const V3 rn[3], const float* J) {
+  const float* b = pv.column_bary + 3 * k;
+  V3 n0 = b[0] * rn[0] + b[1] * rn[1] + b[2] * rn[2];
+  V3 n = normalized_or(cofactor_apply(J, n0), n0);
+  return normalized_or(n, rn[0]);
+}
+
 // One column k of patch p: the deformed sample x and its deformed, interpolated render normal n.
 SFFD_HD void fit_column(const PlanView& pv, const FrameView& fv, int p, int k, const V3 rn[3], V3& x, V3& n) {
   int s = pv.patch_samples[(long long)p * pv.columns + k];
   x = load3(fv.sample_value + 3 * (long long)s);
-  const float* b = pv.column_bary + 3 * k;
-  V3 n0 = b[0] * rn[0] + b[1] * rn[1] + b[2] * rn[2];
-  n = normalized_or(cofactor_apply(fv.sample_jacobian + 9 * (long long)s, n0), n0);
-  n = normalized_or(n, rn[0]);
+  n = deformed_column_normal(pv, k, rn, fv.sample_jacobian + 9 * (long long)s);
 }
 
-// Replaces the corners and edge control points of fitted geometry patch g with the exact
-// corners and the adjusted edge control points, and moves the centre with them.
-SFFD_HD void finish_patch(const PlanView& pv, const FrameView& fv, int p, V3 g[10]) {
+// Replaces the corners of fitted geometry patch g with the exact corners and the edge control
+// points with the adjusted ones (edge_cp[k]: next to corner k, next to corner k + 1), and
+// moves the centre with them.
+SFFD_HD void finish_patch_from(const V3 corner[3], const V3 edge_cp[3][2], V3 g[10]) {
   V3 fitted_mean = v3(0, 0, 0), adjusted_mean = v3(0, 0, 0);
   for (int k = 0; k < 3; ++k) {
-    g[k] = load3(fv.sample_value + 3 * (long long)pv.patch_vertex[3 * p + k]);  // exact corners
-    int e = pv.patch_edge[3 * p + k];
-    bool rev = pv.patch_edge_reversed[3 * p + k];
-    V3 near_a = load3(fv.edge_control + 6 * (long long)e), near_b = load3(fv.edge_control + 6 * (long long)e + 3);
+    g[k] = corner[k];
     int i0 = edge_control_index(k, false), i1 = edge_control_index(k, true);
     fitted_mean += g[i0] + g[i1];
-    g[i0] = rev ? near_b : near_a;
-    g[i1] = rev ? near_a : near_b;
+    g[i0] = edge_cp[k][0];
+    g[i1] = edge_cp[k][1];
     adjusted_mean += g[i0] + g[i1];
   }
   g[kCentre] += 0.25f * (adjusted_mean - fitted_mean);  // 3/2 * (mean of 6 differences)
+}
+
+// finish_patch_from with the corners and edge control points from the frame's buffers.
+SFFD_HD void finish_patch(const PlanView& pv, const FrameView& fv, int p, V3 g[10]) {
+  V3 corner[3], cp[3][2];
+  for (int k = 0; k < 3; ++k) {
+    corner[k] = load3(fv.sample_value + 3 * (long long)pv.patch_vertex[3 * p + k]);
+    int e = pv.patch_edge[3 * p + k];
+    bool rev = pv.patch_edge_reversed[3 * p + k];
+    V3 near_a = load3(fv.edge_control + 6 * (long long)e), near_b = load3(fv.edge_control + 6 * (long long)e + 3);
+    cp[k][0] = rev ? near_b : near_a;
+    cp[k][1] = rev ? near_a : near_b;
+  }
+  finish_patch_from(corner, cp, g);
 }
 
 // fit_patch writing the 10 + 10 control points to out_g and out_n (30 floats each).

@@ -7,8 +7,12 @@
 //           into a matrix X (K x 6P), one SGEMM M_r (10 x K) X (Eq. 13), a finishing kernel
 //           (exact corners, adjusted edges, centre), one SGEMM B_q (G x 10) C (10 x 6P)
 //           (Eq. 14), then a kernel that scatters the welded positions and normalizes normals.
-//   fused:  sampling, edge adjustment, then one kernel that fits a block of patches into
-//           shared memory and tessellates them straight from there (no intermediate matrices).
+//   fused:  no intermediate matrices. Default ("inline", cuda/inline_kernels.cuh): one
+//           kernel a frame in which each patch evaluates its own samples, fits, adjusts its
+//           edges and tessellates from shared memory. "staged" (SMOOTHFFD_FUSED_FIT=staged,
+//           and lattices with more than 4 terms an axis): a sampling kernel and an edge
+//           kernel write per-sample and per-edge buffers, then one kernel fits a block of
+//           patches into shared memory and tessellates them straight from there.
 //
 // Device-resident output of a frame (compact): positions, N x 3 (welded output vertices), and
 // normals per render vertex, R x 3 (Plan::render_*: an output vertex duplicated only where

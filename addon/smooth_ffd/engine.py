@@ -5,12 +5,13 @@ import time
 import bpy
 import numpy as np
 
-from . import compat, core, latticeio, logic, meshio, nodegroup
+from . import carry, compat, core, latticeio, logic, meshio, nodegroup
 
 OWNER_KEY = "smooth_ffd_owner"          # result object -> source object's name_full (a string)
 MODIFIER_KEY = "smooth_ffd_modifier"    # result object -> modifier name
 TOPOLOGY_KEY = "smooth_ffd_topology"    # result mesh -> plan that built its topology
 NORMALS_KEY = "smooth_ffd_normals"      # result mesh -> "exact" or "fast"
+EXTRAS_KEY = "smooth_ffd_extras"        # result mesh -> topology + carried UV maps / groups
 
 
 class _State:
@@ -22,6 +23,8 @@ class _State:
         self.source_stamp = None
         self.deformer = None
         self.plan_key = None
+        self.carry = None         # carry.CarryMap of the current plan (UV maps, groups)
+        self.carry_key = None
 
 
 _states = {}
@@ -126,7 +129,9 @@ def _source(obj, settings, st, mesh_changed):
         # Like Blender's Lattice modifier, an unknown group name means no weighting.
         group_index = idx if idx >= 0 else None
     mesh = obj.data
-    stamp = (group_index, settings.invert, len(mesh.vertices), len(mesh.loops), len(mesh.polygons))
+    names = [g.name for g in obj.vertex_groups]
+    stamp = (group_index, settings.invert, len(mesh.vertices), len(mesh.loops), len(mesh.polygons),
+             tuple(names), tuple(layer.name for layer in mesh.uv_layers))
     if st.source is not None and not mesh_changed and st.source_stamp == stamp:
         return st.source
     if obj.mode == 'EDIT':
@@ -135,11 +140,11 @@ def _source(obj, settings, st, mesh_changed):
         obj.update_from_editmode()
         tmp = mesh.copy()
         try:
-            st.source = meshio.SourceMesh(tmp, group_index, settings.invert)
+            st.source = meshio.SourceMesh(tmp, group_index, settings.invert, names)
         finally:
             bpy.data.meshes.remove(tmp)
     else:
-        st.source = meshio.SourceMesh(mesh, group_index, settings.invert)
+        st.source = meshio.SourceMesh(mesh, group_index, settings.invert, names)
     st.source_stamp = stamp
     return st.source
 
@@ -163,7 +168,8 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
                                       latticeio.world_matrix(settings.lattice, depsgraph))
         source = _source(obj, settings, st, mesh_changed)
         ro = result_object(obj, mod)
-        key = logic.digest(lattice_key, l2o, settings.strength, source.key, level, backend, exact)
+        key = logic.digest(lattice_key, l2o, settings.strength, source.key, source.extras_key,
+                           level, backend, exact)
         if not force and key == st.last_key and _result_matches(ro.data, st):
             return False
         t0 = time.perf_counter()
@@ -177,7 +183,7 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
             st.plan_key = plan_key
         res = st.deformer.deform(lattice)
         t1 = time.perf_counter()
-        times = _write_result(obj, ro.data, res, source, logic.digest(plan_key), exact)
+        times = _write_result(obj, ro, res, source, logic.digest(plan_key), exact, st)
         normals = times.pop("normals")
         t2 = time.perf_counter()
         st.last_key = key
@@ -237,8 +243,20 @@ def _materials(obj):
         list(obj.data.materials)
 
 
-def _write_result(obj, mesh, res, source, topology_token, exact):
+def _carry_map(st, source, res):
+    """The plan's CarryMap (built once per plan, and only for sources that need it)."""
+    if not source.carries_extras:
+        return None
+    if st.carry is None or st.carry_key != st.plan_key:
+        st.carry = None
+        st.carry = carry.CarryMap(source, st.deformer.plan, res.rest_positions)
+        st.carry_key = st.plan_key
+    return st.carry
+
+
+def _write_result(obj, ro, res, source, topology_token, exact, st):
     """Writes res into the result mesh; returns timings (ms) and the normals path used."""
+    mesh = ro.data
     t0 = time.perf_counter()
     mode = "exact" if exact else "fast"
     same = (mesh.get(TOPOLOGY_KEY) == topology_token and len(mesh.vertices) == len(res.positions)
@@ -250,6 +268,16 @@ def _write_result(obj, mesh, res, source, topology_token, exact):
         mesh[TOPOLOGY_KEY] = topology_token
     else:
         meshio.write_positions(mesh, res)
+    # UV maps and vertex groups: with a new topology, or when only they changed.
+    extras_token = logic.digest(topology_token, source.extras_key)
+    carry_ms, carry_calls = 0.0, 0
+    if rebuild or mesh.get(EXTRAS_KEY) != extras_token:
+        tc = time.perf_counter()
+        cmap = _carry_map(st, source, res)
+        carry.write_uv_layers(mesh, res, source, cmap)
+        carry_calls = carry.write_vertex_groups(ro, res, source, cmap)
+        mesh[EXTRAS_KEY] = extras_token
+        carry_ms = 1e3 * (time.perf_counter() - tc)
     t1 = time.perf_counter()
     if exact:
         path = meshio.write_normals(mesh, res)
@@ -260,4 +288,5 @@ def _write_result(obj, mesh, res, source, topology_token, exact):
     mesh.update()
     t3 = time.perf_counter()
     return {"normals": path, "rebuilt": rebuild, "mesh_write_ms": 1e3 * (t1 - t0),
+            "carry_ms": carry_ms, "carry_add_calls": carry_calls,
             "normals_ms": 1e3 * (t2 - t1), "tag_ms": 1e3 * (t3 - t2)}

@@ -25,6 +25,8 @@ class _State:
         self.plan_key = None
         self.carry = None         # carry.CarryMap of the current plan (UV maps, groups)
         self.carry_key = None
+        self.status_base = None   # last "OK ..." status, without the stack warning
+        self.above = 0            # enabled modifiers above this one, as last reported
 
 
 _states = {}
@@ -168,9 +170,12 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
                                       latticeio.world_matrix(settings.lattice, depsgraph))
         source = _source(obj, settings, st, mesh_changed)
         ro = result_object(obj, mod)
+        above = modifiers_above(obj, mod, render)
         key = logic.digest(lattice_key, l2o, settings.strength, source.key, source.extras_key,
                            level, backend, exact)
         if not force and key == st.last_key and _result_matches(ro.data, st):
+            if above != st.above and st.status_base is not None:
+                _set_ok_status(obj, mod, st, st.status_base, above)
             return False
         t0 = time.perf_counter()
         lattice = core.smoothffd().BlenderLattice(rest, pts, interpolation=interp,
@@ -188,9 +193,9 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
         t2 = time.perf_counter()
         st.last_key = key
         used = res.stats.get("device", backend) if isinstance(res.stats, dict) else backend
-        set_status(obj, mod, f"OK {used}, level {level}, {len(res.triangles)} tris, "
-                             f"deform {1e3 * (t1 - t0):.1f} ms, write {1e3 * (t2 - t1):.1f} ms"
-                             f" ({normals} normals)", True)
+        _set_ok_status(obj, mod, st, f"OK {used}, level {level}, {len(res.triangles)} tris, "
+                                     f"deform {1e3 * (t1 - t0):.1f} ms, write "
+                                     f"{1e3 * (t2 - t1):.1f} ms ({normals} normals)", above)
         _last_timing[(obj.name_full, mod.name)] = {
             "deform_ms": 1e3 * (t1 - t0), "write_ms": 1e3 * (t2 - t1), "normals": normals,
             "level": level, "triangles": len(res.triangles), "stats": res.stats, **times}
@@ -225,8 +230,34 @@ def last_timing(obj, mod):
     return _last_timing.get((obj.name_full, mod.name))
 
 
+def modifiers_above(obj, mod, render=False):
+    """How many enabled modifiers come before mod: their output is not this one's input (the
+    input is the object's own mesh), so the user is told."""
+    count = 0
+    for m in obj.modifiers:
+        if m == mod:
+            return count
+        if m.show_render if render else m.show_viewport:
+            count += 1
+    return 0
+
+
+def stack_warning(count):
+    return (f"warning: {count} modifier(s) above Smooth FFD are ignored (its input is the "
+            f"object's own mesh); move it first")
+
+
+def _set_ok_status(obj, mod, st, base, above):
+    st.status_base = base
+    if above and above != st.above:   # once per change, not on every update
+        print(f"Smooth FFD [{obj.name} / {mod.name}]: {stack_warning(above)}")
+    st.above = above
+    set_status(obj, mod, f"{base} \u2014 {stack_warning(above)}" if above else base, True)
+
+
 def _fail(obj, mod, st, message):
     st.last_key = None
+    st.status_base = None
     try:
         set_status(obj, mod, "Error: " + message, False)
     except Exception as e:   # even the status write failed (e.g. group removed)

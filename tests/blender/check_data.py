@@ -1,8 +1,11 @@
-"""Data carried onto the result: vertex groups (before and after Apply) and every UV map.
+"""Data carried onto the result: vertex groups (before and after Apply), every UV map, and the
+warning about modifiers above Smooth FFD in the stack.
 
 Expected values are computed here independently of the add-on's carry code: source
 triangles directly, quads through whichever diagonal reproduces the core's own interpolation
 of the render UV map (random per-corner values, so the two diagonals disagree)."""
+import contextlib
+import io
 import os
 import sys
 
@@ -295,10 +298,52 @@ def test_extras_follow_edits():
             len(T.evaluated_mesh(obj).vertices) > nv, str([x.name for x in eobj.vertex_groups]))
 
 
+def move_to(obj, name, index):
+    with bpy.context.temp_override(object=obj, active_object=obj):
+        bpy.ops.object.modifier_move_to_index(modifier=name, index=index)
+
+
+def test_modifiers_above():
+    T.clear()
+    obj = T.make_mesh("cube")
+    lat = T.make_lattice((3, 3, 3), "KEY_BSPLINE", scale=(1.6, 1.6, 1.6), seed=5)
+    mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=2)
+    T.update()
+    T.check("no warning when first", "warning" not in smooth_ffd.status(mod), smooth_ffd.status(mod))
+    sub = obj.modifiers.new("Subdiv", 'SUBSURF')
+    T.update()
+    T.check("no warning for a modifier below", "warning" not in smooth_ffd.status(mod))
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        move_to(obj, sub.name, 0)
+        T.update()
+        s1 = smooth_ffd.status(mod)
+        lat.data.points[3].co_deform.z += 0.2   # a normal update: the warning stays, no reprint
+        T.update()
+        s2 = smooth_ffd.status(mod)
+    printed = [l for l in buf.getvalue().splitlines() if "above Smooth FFD" in l]
+    T.check("warning in the status", s1.startswith("OK") and
+            "warning: 1 modifier(s) above Smooth FFD are ignored" in s1 and "move it first" in s1, s1)
+    T.check("warning kept after an update", "warning: 1 modifier(s)" in s2 and s2 != s1, s2)
+    T.check("console warned once", len(printed) == 1, repr(printed))
+    wave = obj.modifiers.new("Wave", 'WAVE')
+    move_to(obj, wave.name, 0)
+    T.update()
+    T.check("two above", "warning: 2 modifier(s)" in smooth_ffd.status(mod), smooth_ffd.status(mod))
+    wave.show_viewport = False
+    T.update()
+    T.check("disabled modifiers do not count", "warning: 1 modifier(s)" in smooth_ffd.status(mod),
+            smooth_ffd.status(mod))
+    move_to(obj, mod.name, 0)
+    T.update()
+    T.check("warning gone when moved first", "warning" not in smooth_ffd.status(mod),
+            smooth_ffd.status(mod))
+
+
 def main():
     T.setup()
     for fn in (test_vertex_groups, test_uv_maps, test_carry_matches_core, test_extras_follow_edits,
-               test_no_extras_no_cost):
+               test_no_extras_no_cost, test_modifiers_above):
         T.run(fn.__name__, fn)
     T.finish()
 

@@ -48,10 +48,14 @@ def invalidate_sources():
 
 
 def forget(obj=None, mod=None):
+    """Drops the in-memory state (plan, source, carry map) of one modifier, or of all.
+    mod: the modifier or its name (after Apply the modifier itself is freed)."""
     if obj is None:
         _states.clear()
     else:
-        _states.pop((obj.name_full, mod.name), None)
+        name = mod if isinstance(mod, str) else mod.name
+        _states.pop((obj.name_full, name), None)
+        _last_timing.pop((obj.name_full, name), None)
 
 
 class Settings:

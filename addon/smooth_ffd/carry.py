@@ -15,29 +15,89 @@ import numpy as np
 
 from . import compat, core, logic
 
-CHUNK = 1 << 18   # output triangles per numpy batch (bounds temporary memory at high levels)
+CHUNK = 1 << 20   # output corners per numpy batch (bounds temporary memory at high levels)
 
 
 class CarryMap:
-    """Where the output lies in the core's triangulation of the source, for one plan."""
+    """Where the output lies in the core's triangulation of the source, for one plan.
 
-    def __init__(self, source, plan, rest_positions):
+    Per patch: the source corners of the core triangle it is a piece of, and its own corners'
+    barycentric coordinates there (P, 3, 3). Per output triangle corner: the tessellation
+    grid (the same table for every patch, exact multiples of 1/L). A corner's coordinates in
+    its core triangle are the product, which is also how the core interpolates its UV map.
+    """
+
+    def __init__(self, source, plan, res):
         t0 = time.perf_counter()
-        tri_face, self.tri_corners = triangulation(source)
-        tri_vertices = source.corner_vertices[self.tri_corners]
-        self.tri_points = np.asarray(source.positions, np.float64)[tri_vertices]
+        tri_face, tri_corners = triangulation(source)
+        tri_points = np.asarray(source.positions, np.float64)[source.corner_vertices[tri_corners]]
         first, count = logic.face_triangle_ranges(tri_face, len(source.face_offsets) - 1)
         patch_vertex = np.asarray(plan.patch_vertex()).reshape(-1, 3)
-        rest = np.asarray(rest_positions)
-        self.patch_tri = logic.patch_core_triangles(plan.patch_face(), rest[patch_vertex],
-                                                    first, count, self.tri_points)
+        rest = np.asarray(res.rest_positions)
+        pp = rest[patch_vertex].astype(np.float64)                     # (P, 3, 3)
+        self.patch_tri = logic.patch_core_triangles(plan.patch_face(), pp, first, count, tri_points)
+        self.core_corners = tri_corners[self.patch_tri]                # (P, 3) source corners
+        tp = tri_points[self.patch_tri]
+        self.patch_bary = logic.triangle_barycentrics(
+            pp.reshape(-1, 3), *(np.repeat(tp[:, k], 3, axis=0) for k in range(3))
+        ).reshape(-1, 3, 3)
+        self.tri_corners, self.tri_points = tri_corners, tri_points   # the direct path
         self.level = plan.level
+        self.table = _grid_table(res.triangles, rest, pp, self.level)
         self.build_ms = 1e3 * (time.perf_counter() - t0)
 
-    def corners(self, triangles, rest, start, stop):
-        return logic.output_corner_barycentrics(triangles, self.level, self.patch_tri,
-                                                self.tri_corners, self.tri_points, rest,
-                                                start, stop)
+    def corner_values(self, values, res):
+        """values (C, k) per source corner -> (T * 3, k) float32 at the output corners."""
+        values = np.asarray(values)
+        nt = len(res.triangles)
+        out = np.empty((nt * 3, values.shape[1]), dtype=np.float32)
+        per_patch = 3 * self.level * self.level
+        if self.table is not None:
+            step = max(1, CHUNK // per_patch)
+            for s in range(0, len(self.core_corners), step):
+                e = min(len(self.core_corners), s + step)
+                out[s * per_patch:e * per_patch] = logic.interpolate_patch_grid(
+                    self.table, self.patch_bary[s:e], values[self.core_corners[s:e]])
+            return out
+        for s in range(0, nt, CHUNK // 3):
+            e = min(nt, s + CHUNK // 3)
+            c, b = logic.output_corner_barycentrics(res.triangles, self.level, self.patch_tri,
+                                                    self.tri_corners, self.tri_points,
+                                                    res.rest_positions, s, e)
+            out[3 * s:3 * e] = logic.interpolate_corner_values(values, c, b)
+        return out
+
+    def corner_barycentrics(self, res, corners):
+        """For output corners (3 * triangle + corner): (source corners (n, 3), coordinates
+        (n, 3)) in the core triangle each lies in."""
+        corners = np.asarray(corners, np.int64)
+        ll = self.level * self.level
+        tri, c = corners // 3, corners % 3
+        patch = tri // ll
+        if self.table is not None:
+            grid = self.table[3 * (tri % ll) + c]
+            bary = np.einsum("nk,nkj->nj", grid, self.patch_bary[patch])
+        else:
+            tp = self.tri_points[self.patch_tri[patch]]
+            pts = np.asarray(res.rest_positions, np.float64)[np.asarray(res.triangles)[tri, c]]
+            bary = logic.triangle_barycentrics(pts, tp[:, 0], tp[:, 1], tp[:, 2])
+        return self.core_corners[patch], bary
+
+
+def _grid_table(triangles, rest, patch_points, level):
+    """The grid table read off the three largest patches (they must agree), or None: then
+    the direct path computes each corner's coordinates from its rest point."""
+    ll = level * level
+    p0, p1, p2 = patch_points[:, 0], patch_points[:, 1], patch_points[:, 2]
+    area = np.linalg.norm(np.cross(p1 - p0, p2 - p0), axis=1)
+    tables = []
+    for p in np.argsort(-area)[:3]:
+        pts = rest[np.asarray(triangles[p * ll:(p + 1) * ll]).reshape(-1)]
+        tables.append(logic.grid_table(pts, patch_points[p], level))
+    if not tables or any(t is None for t in tables) or \
+            any(not np.array_equal(t, tables[0]) for t in tables):
+        return None
+    return tables[0]
 
 
 def triangulation(source):
@@ -108,17 +168,12 @@ def write_uv_layers(mesh, res, source, carry):
         layers.remove(layers[0])
     if res.uvs is None or not source.uv_layers:
         return
-    nt = len(res.triangles)
     for name, uvs in source.uv_layers:
         layer = layers.new(name=name)
         if name == source.uv_render or carry is None:
-            values = res.uvs
+            values = res.uvs   # the core's own interpolation
         else:
-            values = np.empty((nt * 3, 2), dtype=np.float32)
-            for s in range(0, nt, CHUNK):
-                e = min(nt, s + CHUNK)
-                c, b = carry.corners(res.triangles, res.rest_positions, s, e)
-                values[3 * s:3 * e] = logic.interpolate_corner_values(uvs, c, b)
+            values = carry.corner_values(uvs, res)
         compat.set_uvs(mesh, layer, values)
     by_name = {layer.name: layer for layer in layers}
     if source.uv_active in by_name:
@@ -133,16 +188,8 @@ def group_values(res, source, carry):
     nv = source.num_vertices
     rep = logic.vertex_representatives(res.triangles, n)[nv:]
     inner = np.nonzero(rep >= 0)[0]
-    src = np.zeros((len(inner), 3), dtype=np.int64)
-    bary = np.zeros((len(inner), 3))
-    for s in range(0, len(inner), 3 * CHUNK):
-        r = rep[inner[s:s + 3 * CHUNK]]
-        ot = r // 3
-        core_tri = carry.patch_tri[ot // (carry.level * carry.level)]
-        tp = carry.tri_points[core_tri]
-        pts = np.asarray(res.rest_positions, np.float64)[nv + inner[s:s + 3 * CHUNK]]
-        bary[s:s + len(r)] = logic.triangle_barycentrics(pts, tp[:, 0], tp[:, 1], tp[:, 2])
-        src[s:s + len(r)] = source.corner_vertices[carry.tri_corners[core_tri]]
+    corners, bary = carry.corner_barycentrics(res, rep[inner])
+    src = source.corner_vertices[corners]
     out = []
     for member, weight in source.groups:
         w_in, m_in = logic.interpolate_group(weight, member, src, bary)

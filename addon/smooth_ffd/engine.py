@@ -284,7 +284,7 @@ def _carry_map(st, source, res):
         return None
     if st.carry is None or st.carry_key != st.plan_key:
         st.carry = None
-        st.carry = carry.CarryMap(source, st.deformer.plan, res.rest_positions)
+        st.carry = carry.CarryMap(source, st.deformer.plan, res)
         st.carry_key = st.plan_key
     return st.carry
 

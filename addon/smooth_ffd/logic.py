@@ -202,12 +202,30 @@ def patch_core_triangles(patch_face, patch_points, tri_first, tri_count, tri_poi
     return best
 
 
+def grid_table(points, corners, level, tol=1e-3):
+    """The tessellation grid of one patch as exact barycentric coordinates.
+
+    points (L^2 * 3, 3): the rest points of a patch's output triangle corners, in the core's
+    order; corners (3, 3): the patch's corners. The core tessellates every patch with the same
+    grid (i/L, j/L, k/L), so the table serves all patches. Returns (L^2 * 3, 3) multiples of
+    1/L, or None when the points are not on that grid (a degenerate patch).
+    """
+    c = np.asarray(corners, np.float64)
+    n = len(points)
+    b = triangle_barycentrics(points, np.repeat(c[:1], n, 0), np.repeat(c[1:2], n, 0),
+                              np.repeat(c[2:], n, 0), snap=0.0)
+    scaled = b * level
+    steps = np.rint(scaled)
+    if np.abs(scaled - steps).max(initial=0.0) > tol or np.any(steps.sum(axis=1) != level):
+        return None
+    return steps / level
+
+
 def output_corner_barycentrics(triangles, level, patch_tri, tri_corners, tri_points, rest,
                                start=0, stop=None):
-    """For output triangles [start, stop): per corner the 3 source corners of the core triangle
-    it lies in ((n*3, 3) int64) and its barycentric coordinates there ((n*3, 3) float64).
-
-    Output triangle t belongs to patch t // level^2 (the core's numbering)."""
+    """Direct (slow) path: for output triangles [start, stop), per corner the 3 source corners
+    of the core triangle it lies in ((n*3, 3) int64) and its barycentric coordinates there
+    from its rest point ((n*3, 3) float64). Output triangle t belongs to patch t // level^2."""
     triangles = np.asarray(triangles)
     stop = len(triangles) if stop is None else stop
     ot = np.arange(start, stop)
@@ -217,6 +235,15 @@ def output_corner_barycentrics(triangles, level, patch_tri, tri_corners, tri_poi
     bary = triangle_barycentrics(pts, tp[:, 0], tp[:, 1], tp[:, 2])
     corners = np.repeat(np.asarray(tri_corners, np.int64)[core], 3, axis=0)
     return corners, bary
+
+
+def interpolate_patch_grid(table, patch_bary, values):
+    """Per-corner values of every output triangle of patches, the way the core interpolates
+    its UV map: values at the patch corners (patch_bary (P, 3, 3) @ values (P, 3, k), the
+    values at each patch's core triangle corners), then the grid table (L^2 * 3, 3).
+    Returns (P * L^2 * 3, k) float64."""
+    at_corners = np.matmul(np.asarray(patch_bary, np.float64), np.asarray(values, np.float64))
+    return np.matmul(table[None], at_corners).reshape(-1, at_corners.shape[-1])
 
 
 def interpolate_corner_values(values, corners, bary):
@@ -260,9 +287,9 @@ def weight_batches(indices, weights):
     weights = np.asarray(weights, np.float32)
     if len(indices) == 0:
         return []
-    values, inverse = np.unique(weights, return_inverse=True)
-    order = np.argsort(inverse, kind="stable")
-    bounds = np.concatenate([[0], np.cumsum(np.bincount(inverse, minlength=len(values)))])
-    sorted_idx = indices[order]
-    return [(float(values[i]), sorted_idx[bounds[i]:bounds[i + 1]].tolist())
-            for i in range(len(values))]
+    order = np.argsort(weights, kind="stable")
+    w = weights[order]
+    starts = np.concatenate([[0], np.nonzero(w[1:] != w[:-1])[0] + 1, [len(w)]]).tolist()
+    idx = indices[order].tolist()            # one conversion; slicing lists is cheap
+    values = w[starts[:-1]].tolist()
+    return [(values[i], idx[starts[i]:starts[i + 1]]) for i in range(len(values))]

@@ -15,7 +15,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
 import smooth_ffd  # noqa: E402
-from smooth_ffd import compat, engine, logic, meshio  # noqa: E402
+from smooth_ffd import compat, engine, meshio  # noqa: E402
 
 RNG = np.random.default_rng(7)
 
@@ -247,11 +247,24 @@ def test_carry_matches_core():
     st = engine._states[(obj.name_full, mod.name)]
     res = st.deformer.deform()
     cmap = st.carry
-    c, b = cmap.corners(res.triangles, res.rest_positions, 0, len(res.triangles))
-    mine = logic.interpolate_corner_values(st.source.uvs, c, b)
+    T.check("grid table found (fast path)", cmap.table is not None)
+    mine = cmap.corner_values(st.source.uvs, res)
     err = np.abs(mine - res.uvs.reshape(-1, 2)).max()
     T.check("carry triangulation == core's (all corners)", err < 2e-6,
             f"{len(mine)} corners, max err {err:.1e}")
+    # The direct path (each corner from its rest point) agrees too.
+    table, cmap.table = cmap.table, None
+    try:
+        direct = cmap.corner_values(st.source.uvs, res)
+        c = np.arange(len(res.triangles) * 3)
+        corners_d, bary_d = cmap.corner_barycentrics(res, c)
+    finally:
+        cmap.table = table
+    corners_t, bary_t = cmap.corner_barycentrics(res, c)
+    err_d = np.abs(direct - res.uvs.reshape(-1, 2)).max()
+    T.check("direct path == core's (all corners)", err_d < 2e-6 and
+            np.array_equal(corners_d, corners_t) and np.abs(bary_d - bary_t).max() < 1e-5,
+            f"max err {err_d:.1e}, bary diff {np.abs(bary_d - bary_t).max():.1e}")
 
 
 def test_no_extras_no_cost():

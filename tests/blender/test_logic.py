@@ -141,3 +141,25 @@ def test_vertex_representatives_and_batches(logic):
     batches = logic.weight_batches([4, 9, 2, 7], np.array([0.5, 1.0, 0.5, 0.25], np.float32))
     assert batches == [(0.25, [7]), (0.5, [4, 2]), (1.0, [9])]
     assert logic.weight_batches([], []) == []
+
+
+def test_grid_table_and_patch_grid(logic):
+    # Level 2 grid of a patch with corners P0, P1, P2; the 4 sub-triangles' corners in some order.
+    P = np.array([[0, 0, 0], [4, 0, 0], [0, 4, 1]], float)
+    grid = {(2, 0, 0): 0, (1, 1, 0): 1, (0, 2, 0): 2, (1, 0, 1): 3, (0, 1, 1): 4, (0, 0, 2): 5}
+    local = [[(2, 0, 0), (1, 1, 0), (1, 0, 1)], [(1, 1, 0), (0, 2, 0), (0, 1, 1)],
+             [(1, 0, 1), (0, 1, 1), (0, 0, 2)], [(1, 1, 0), (0, 1, 1), (1, 0, 1)]]
+    pts = np.array([np.array(g) @ P / 2 for tri in local for g in tri])
+    pts = pts.astype(np.float32)            # rest positions come as float32
+    table = logic.grid_table(pts, P, 2)
+    assert table.tolist() == [[x / 2 for x in g] for tri in local for g in tri]
+    assert logic.grid_table(pts + 0.3, P, 2) is None            # not on the grid
+    # Two patches; values at their core triangle corners (P, 3, k); patch 1 is the core
+    # triangle's lower half (corners at core coordinates below).
+    pb = np.array([np.eye(3), [[1, 0, 0], [0.5, 0.5, 0], [0.5, 0, 0.5]]])
+    vals = np.array([[[0, 0], [1, 0], [0, 1]], [[0, 0], [1, 0], [0, 1]]], float)
+    out = logic.interpolate_patch_grid(table, pb, vals).reshape(2, 4, 3, 2)
+    assert np.array_equal(out[0, 0, 0], [0, 0]) and np.array_equal(out[0, 1, 1], [1, 0])
+    assert np.allclose(out[0, 3], [[0.5, 0], [0.5, 0.5], [0, 0.5]])
+    assert np.allclose(out[1, 1, 1], [0.5, 0])                   # patch corner 1 = core (.5,.5,0)
+    assert np.allclose(out[1, 2, 2], [0, 0.5])

@@ -146,11 +146,13 @@ def _source(obj, settings, st, mesh_changed):
         obj.update_from_editmode()
         tmp = mesh.copy()
         try:
-            st.source = meshio.SourceMesh(tmp, group_index, settings.invert, names)
+            source = meshio.SourceMesh(tmp, group_index, settings.invert, names)
         finally:
             bpy.data.meshes.remove(tmp)
     else:
-        st.source = meshio.SourceMesh(mesh, group_index, settings.invert, names)
+        source = meshio.SourceMesh(mesh, group_index, settings.invert, names)
+    source.keep_normals_of(st.source)
+    st.source = source
     st.source_stamp = stamp
     return st.source
 

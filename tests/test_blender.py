@@ -58,7 +58,7 @@ def _summary(out):
 
 @pytest.mark.parametrize("runner", sorted(RUNNERS))
 @pytest.mark.parametrize("script", ["check_parity.py", "check_normals.py", "check_live.py",
-                                    "check_render.py", "check_robustness.py"])
+                                    "check_render.py", "check_robustness.py", "check_data.py"])
 def test_blender_script(runner, script):
     rc, out = _run(RUNNERS[runner](script))
     assert rc == 0, f"{runner} {script} failed (rc={rc}):\n{_summary(out)}\n--- tail ---\n{out[-3000:]}"

@@ -62,6 +62,7 @@ def apply_smooth_ffd(obj, mod):
     deleted. Raises RuntimeError (source untouched) when the modifier has no valid result.
     """
     with handlers.muted():
+        name = mod.name   # the modifier is freed by the operator: never touch it after
         depsgraph = bpy.context.evaluated_depsgraph_get()
         if not engine.update_modifier(obj, mod, depsgraph, render=True, force=True):
             raise RuntimeError(f"Smooth FFD cannot be applied: {status(mod)}")
@@ -73,11 +74,11 @@ def apply_smooth_ffd(obj, mod):
         with bpy.context.temp_override(object=obj, active_object=obj, selected_objects=[obj]):
             # The operator applies exactly this modifier (not the ones after it) and
             # records undo.
-            result = bpy.ops.object.modifier_apply(modifier=mod.name)
+            result = bpy.ops.object.modifier_apply(modifier=name)
         if 'FINISHED' not in result:
-            raise RuntimeError(f"applying {mod.name!r} failed: {result}")
+            raise RuntimeError(f"applying {name!r} failed: {result}")
         _delete_result(ro)
-        engine.forget(obj, mod)
+        engine.forget(obj, name)   # its plan can be hundreds of MB at the render level
     return obj.data
 
 

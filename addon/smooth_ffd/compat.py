@@ -47,23 +47,37 @@ def hide_in_modifier(socket):
 
 def input_identifier(group, name):
     """Resolves a group input's identifier from its name: Input_N up to 3.6, Socket_N from 4.0."""
+    if group is None:
+        raise KeyError(f"no node group: no input named {name!r}")
     for socket in group_sockets(group, 'INPUT'):
         if socket.name == name:
             return socket.identifier
     raise KeyError(f"node group {group.name!r} has no input named {name!r}")
 
 
+def _input_slot(mod, ident):
+    """5.2+: the modifier's input `ident` (mod.properties.inputs.<identifier>, whose .value is
+    the setting); mod.properties is None while the modifier has no node group."""
+    props = mod.properties
+    if props is None:
+        raise KeyError(f"modifier {mod.name!r} has no node group inputs")
+    return getattr(props.inputs, ident)
+
+
 def get_modifier_input(mod, name):
+    """A Geometry Nodes modifier's input value by the group input's name: mod["Input_N"] up to
+    3.6, mod["Socket_N"] from 4.0 (ID properties), mod.properties.inputs.<identifier>.value
+    from 5.2."""
     ident = input_identifier(mod.node_group, name)
     if HAS_MODIFIER_PROPERTIES:
-        return getattr(mod.properties.inputs, ident).value
+        return _input_slot(mod, ident).value
     return mod[ident]
 
 
 def set_modifier_input(mod, name, value):
     ident = input_identifier(mod.node_group, name)
     if HAS_MODIFIER_PROPERTIES:
-        getattr(mod.properties.inputs, ident).value = value
+        _input_slot(mod, ident).value = value
     else:
         mod[ident] = value
 

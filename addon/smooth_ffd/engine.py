@@ -5,12 +5,13 @@ import time
 import bpy
 import numpy as np
 
-from . import compat, core, latticeio, logic, meshio, nodegroup
+from . import carry, compat, core, latticeio, logic, meshio, nodegroup
 
 OWNER_KEY = "smooth_ffd_owner"          # result object -> source object's name_full (a string)
 MODIFIER_KEY = "smooth_ffd_modifier"    # result object -> modifier name
 TOPOLOGY_KEY = "smooth_ffd_topology"    # result mesh -> plan that built its topology
 NORMALS_KEY = "smooth_ffd_normals"      # result mesh -> "exact" or "fast"
+EXTRAS_KEY = "smooth_ffd_extras"        # result mesh -> topology + carried UV maps / groups
 
 
 class _State:
@@ -22,6 +23,10 @@ class _State:
         self.source_stamp = None
         self.deformer = None
         self.plan_key = None
+        self.carry = None         # carry.CarryMap of the current plan (UV maps, groups)
+        self.carry_key = None
+        self.status_base = None   # last "OK ..." status, without the stack warning
+        self.above = 0            # enabled modifiers above this one, as last reported
 
 
 _states = {}
@@ -43,10 +48,14 @@ def invalidate_sources():
 
 
 def forget(obj=None, mod=None):
+    """Drops the in-memory state (plan, source, carry map) of one modifier, or of all.
+    mod: the modifier or its name (after Apply the modifier itself is freed)."""
     if obj is None:
         _states.clear()
     else:
-        _states.pop((obj.name_full, mod.name), None)
+        name = mod if isinstance(mod, str) else mod.name
+        _states.pop((obj.name_full, name), None)
+        _last_timing.pop((obj.name_full, name), None)
 
 
 class Settings:
@@ -126,7 +135,9 @@ def _source(obj, settings, st, mesh_changed):
         # Like Blender's Lattice modifier, an unknown group name means no weighting.
         group_index = idx if idx >= 0 else None
     mesh = obj.data
-    stamp = (group_index, settings.invert, len(mesh.vertices), len(mesh.loops), len(mesh.polygons))
+    names = [g.name for g in obj.vertex_groups]
+    stamp = (group_index, settings.invert, len(mesh.vertices), len(mesh.loops), len(mesh.polygons),
+             tuple(names), tuple(layer.name for layer in mesh.uv_layers))
     if st.source is not None and not mesh_changed and st.source_stamp == stamp:
         return st.source
     if obj.mode == 'EDIT':
@@ -135,11 +146,13 @@ def _source(obj, settings, st, mesh_changed):
         obj.update_from_editmode()
         tmp = mesh.copy()
         try:
-            st.source = meshio.SourceMesh(tmp, group_index, settings.invert)
+            source = meshio.SourceMesh(tmp, group_index, settings.invert, names)
         finally:
             bpy.data.meshes.remove(tmp)
     else:
-        st.source = meshio.SourceMesh(mesh, group_index, settings.invert)
+        source = meshio.SourceMesh(mesh, group_index, settings.invert, names)
+    source.keep_normals_of(st.source)
+    st.source = source
     st.source_stamp = stamp
     return st.source
 
@@ -163,8 +176,12 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
                                       latticeio.world_matrix(settings.lattice, depsgraph))
         source = _source(obj, settings, st, mesh_changed)
         ro = result_object(obj, mod)
-        key = logic.digest(lattice_key, l2o, settings.strength, source.key, level, backend, exact)
+        above = modifiers_above(obj, mod, render)
+        key = logic.digest(lattice_key, l2o, settings.strength, source.key, source.extras_key,
+                           level, backend, exact)
         if not force and key == st.last_key and _result_matches(ro.data, st):
+            if above != st.above and st.status_base is not None:
+                _set_ok_status(obj, mod, st, st.status_base, above)
             return False
         t0 = time.perf_counter()
         lattice = core.smoothffd().BlenderLattice(rest, pts, interpolation=interp,
@@ -177,14 +194,14 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
             st.plan_key = plan_key
         res = st.deformer.deform(lattice)
         t1 = time.perf_counter()
-        times = _write_result(obj, ro.data, res, source, logic.digest(plan_key), exact)
+        times = _write_result(obj, ro, res, source, logic.digest(plan_key), exact, st)
         normals = times.pop("normals")
         t2 = time.perf_counter()
         st.last_key = key
         used = res.stats.get("device", backend) if isinstance(res.stats, dict) else backend
-        set_status(obj, mod, f"OK {used}, level {level}, {len(res.triangles)} tris, "
-                             f"deform {1e3 * (t1 - t0):.1f} ms, write {1e3 * (t2 - t1):.1f} ms"
-                             f" ({normals} normals)", True)
+        _set_ok_status(obj, mod, st, f"OK {used}, level {level}, {len(res.triangles)} tris, "
+                                     f"deform {1e3 * (t1 - t0):.1f} ms, write "
+                                     f"{1e3 * (t2 - t1):.1f} ms ({normals} normals)", above)
         _last_timing[(obj.name_full, mod.name)] = {
             "deform_ms": 1e3 * (t1 - t0), "write_ms": 1e3 * (t2 - t1), "normals": normals,
             "level": level, "triangles": len(res.triangles), "stats": res.stats, **times}
@@ -219,8 +236,34 @@ def last_timing(obj, mod):
     return _last_timing.get((obj.name_full, mod.name))
 
 
+def modifiers_above(obj, mod, render=False):
+    """How many enabled modifiers come before mod: their output is not this one's input (the
+    input is the object's own mesh), so the user is told."""
+    count = 0
+    for m in obj.modifiers:
+        if m == mod:
+            return count
+        if m.show_render if render else m.show_viewport:
+            count += 1
+    return 0
+
+
+def stack_warning(count):
+    return (f"warning: {count} modifier(s) above Smooth FFD are ignored (its input is the "
+            f"object's own mesh); move it first")
+
+
+def _set_ok_status(obj, mod, st, base, above):
+    st.status_base = base
+    if above and above != st.above:   # once per change, not on every update
+        print(f"Smooth FFD [{obj.name} / {mod.name}]: {stack_warning(above)}")
+    st.above = above
+    set_status(obj, mod, f"{base} \u2014 {stack_warning(above)}" if above else base, True)
+
+
 def _fail(obj, mod, st, message):
     st.last_key = None
+    st.status_base = None
     try:
         set_status(obj, mod, "Error: " + message, False)
     except Exception as e:   # even the status write failed (e.g. group removed)
@@ -237,8 +280,20 @@ def _materials(obj):
         list(obj.data.materials)
 
 
-def _write_result(obj, mesh, res, source, topology_token, exact):
+def _carry_map(st, source, res):
+    """The plan's CarryMap (built once per plan, and only for sources that need it)."""
+    if not source.carries_extras:
+        return None
+    if st.carry is None or st.carry_key != st.plan_key:
+        st.carry = None
+        st.carry = carry.CarryMap(source, st.deformer.plan, res)
+        st.carry_key = st.plan_key
+    return st.carry
+
+
+def _write_result(obj, ro, res, source, topology_token, exact, st):
     """Writes res into the result mesh; returns timings (ms) and the normals path used."""
+    mesh = ro.data
     t0 = time.perf_counter()
     mode = "exact" if exact else "fast"
     same = (mesh.get(TOPOLOGY_KEY) == topology_token and len(mesh.vertices) == len(res.positions)
@@ -250,6 +305,16 @@ def _write_result(obj, mesh, res, source, topology_token, exact):
         mesh[TOPOLOGY_KEY] = topology_token
     else:
         meshio.write_positions(mesh, res)
+    # UV maps and vertex groups: with a new topology, or when only they changed.
+    extras_token = logic.digest(topology_token, source.extras_key)
+    carry_ms, carry_calls = 0.0, 0
+    if rebuild or mesh.get(EXTRAS_KEY) != extras_token:
+        tc = time.perf_counter()
+        cmap = _carry_map(st, source, res)
+        carry.write_uv_layers(mesh, res, source, cmap)
+        carry_calls = carry.write_vertex_groups(ro, res, source, cmap)
+        mesh[EXTRAS_KEY] = extras_token
+        carry_ms = 1e3 * (time.perf_counter() - tc)
     t1 = time.perf_counter()
     if exact:
         path = meshio.write_normals(mesh, res)
@@ -260,4 +325,5 @@ def _write_result(obj, mesh, res, source, topology_token, exact):
     mesh.update()
     t3 = time.perf_counter()
     return {"normals": path, "rebuilt": rebuild, "mesh_write_ms": 1e3 * (t1 - t0),
+            "carry_ms": carry_ms, "carry_add_calls": carry_calls,
             "normals_ms": 1e3 * (t2 - t1), "tag_ms": 1e3 * (t3 - t2)}

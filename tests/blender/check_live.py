@@ -311,6 +311,9 @@ def test_apply_remove():
     T.check("apply: result object deleted",
             not any(o.get(engine.OWNER_KEY) is not None for o in bpy.data.objects))
     T.check("apply: old mesh untouched", source_digest_mesh(old) == old_digest)
+    # The modifier is freed by Apply: its in-memory plan must go by the name it had.
+    T.check("apply: in-memory state dropped", not any(k[0] == obj.name_full for k in engine._states),
+            str(list(engine._states)))
     obj, lat, ref, mod = scene()
     smooth_ffd.remove_smooth_ffd(obj, mod)
     T.update()

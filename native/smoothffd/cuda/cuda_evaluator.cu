@@ -145,6 +145,40 @@ __device__ __forceinline__ void store3_coalesced(float* __restrict__ dst, V3 v, 
   }
 }
 
+// Control points of a patch in the fused kernels' shared memory: 30 floats padded to 32, so
+// that tessellation reads them as eight 16-byte vectors.
+constexpr int kCtrlStride = 32;
+
+// Position x and unit normal n of a patch at a grid point: B, the point's cubic basis (12
+// floats, 16-byte aligned: PlanView::grid_basis_padded), cg and cn its geometry and normal
+// control points (kCtrlStride floats, 16-byte aligned, shared memory). eval_cubic and
+// unit_patch_normal (stages.hpp) in the same order of operations, with vector loads (3 + 16
+// instead of 10 + 60 scalar loads a point).
+__device__ __forceinline__ void eval_point(const float* __restrict__ B, const float* cg, const float* cn, V3& x,
+                                           V3& n) {
+  float b[12], g[kCtrlStride], c[kCtrlStride];
+#pragma unroll
+  for (int i = 0; i < 3; ++i) {
+    const float4 q = __ldg(reinterpret_cast<const float4*>(B) + i);
+    b[4 * i] = q.x, b[4 * i + 1] = q.y, b[4 * i + 2] = q.z, b[4 * i + 3] = q.w;
+  }
+#pragma unroll
+  for (int i = 0; i < kCtrlStride / 4; ++i) {
+    const float4 q = reinterpret_cast<const float4*>(cg)[i], r = reinterpret_cast<const float4*>(cn)[i];
+    g[4 * i] = q.x, g[4 * i + 1] = q.y, g[4 * i + 2] = q.z, g[4 * i + 3] = q.w;
+    c[4 * i] = r.x, c[4 * i + 1] = r.y, c[4 * i + 2] = r.z, c[4 * i + 3] = r.w;
+  }
+  x = v3(0, 0, 0);
+  V3 nv = v3(0, 0, 0);
+#pragma unroll
+  for (int k = 0; k < 10; ++k) {
+    x += b[k] * v3(g[3 * k], g[3 * k + 1], g[3 * k + 2]);
+    nv += b[k] * v3(c[3 * k], c[3 * k + 1], c[3 * k + 2]);
+  }
+  const V3 fallback = normalized_or(v3(c[0], c[1], c[2]) + v3(c[3], c[4], c[5]) + v3(c[6], c[7], c[8]), v3(0, 0, 1));
+  n = normalized_or(nv, fallback);
+}
+
 // Output vertex of (patch p, grid point g) when p writes it, else -1 (corners are written by
 // the sampling kernel; an edge point by the patch that owns it in the plan).
 __device__ __forceinline__ long long owned_vertex(const PlanView& pv, const GridInfo* gi, const uint8_t* owns,
@@ -244,7 +278,7 @@ __global__ void k_edge(PlanView pv, FrameView fv) {
 // point): positions of the output vertices the patch owns, normals of its render vertices.
 template <int PB, int LANES>
 __device__ __forceinline__ void tessellate_block(const PlanView& pv, const FrameView& fv, const GridInfo* __restrict__ gi,
-                                                 const float (*ctrl)[2][30], const int (*sedge)[3],
+                                                 const float (*ctrl)[2][kCtrlStride], const int (*sedge)[3],
                                                  const uint8_t* sflags, const PatchRender* srender, int base,
                                                  long long render_shift, float* __restrict__ normals) {
   const int G = pv.grid, L = pv.level;
@@ -255,7 +289,7 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
   const int items = np * NB;
   for (int i = threadIdx.x; i < items; i += PB * LANES) {
     int q = i / NB, gp = gi[i - q * NB].order;
-    const float* B = pv.grid_basis + 10 * gp;
+    const float* B = pv.grid_basis_padded + 12 * gp;
     GridInfo t = gi[gp];
     uint8_t f = sflags[q];
     long long o = -1;
@@ -264,11 +298,11 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
       o = pv.sub_vertices + (long long)sedge[q][t.which] * (L - 1) + (m - 1);
     }
     long long r = render_written(pv, srender[q], t, t.kind == 1 && ((f >> (3 + t.which)) & 1), -1, render_shift);
-    if (r >= 0) {
-      const float* cn = ctrl[q][1];
-      store3(normals + 3 * r, unit_patch_normal(eval_cubic(B, cn), cn));
-    }
-    if (o >= 0) store3(fv.positions + 3 * o, eval_cubic(B, ctrl[q][0]));
+    if (r < 0 && o < 0) continue;
+    V3 x, n;
+    eval_point(B, ctrl[q][0], ctrl[q][1], x, n);
+    if (r >= 0) store3(normals + 3 * r, n);
+    if (o >= 0) store3(fv.positions + 3 * o, x);
   }
   // Interior points: the block's are one contiguous run of output (and render) vertices, so
   // each warp takes 32 consecutive ones and writes them with coalesced stores.
@@ -279,10 +313,7 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
     V3 x = v3(0, 0, 0), n = v3(0, 0, 0);
     if (j < n_int) {
       const int q = j / IG, gp = gi[NB + j - q * IG].order;
-      const float* B = pv.grid_basis + 10 * gp;
-      const float* cn = ctrl[q][1];
-      x = eval_cubic(B, ctrl[q][0]);
-      n = unit_patch_normal(eval_cubic(B, cn), cn);
+      eval_point(pv.grid_basis_padded + 12 * gp, ctrl[q][0], ctrl[q][1], x, n);
     }
     const int count = min(32, n_int - j0);
     store3_coalesced(fv.positions + 3 * (o0 + j0), x, count);
@@ -299,7 +330,7 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
                      const PatchRender* __restrict__ prender, long long render_shift,
                      float* __restrict__ normals) {
   static_assert(32 % LANES == 0, "lanes of a patch must share a warp");
-  __shared__ float ctrl[PB][2][30];
+  __shared__ __align__(16) float ctrl[PB][2][kCtrlStride];
   __shared__ int sedge[PB][3];
   __shared__ uint8_t sflags[PB];  // bits 0-2: owns edge k; bits 3-5: edge k reversed
   __shared__ PatchRender srender[PB];
@@ -373,7 +404,7 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
                             const uint8_t* __restrict__ owns, const PatchRender* __restrict__ prender,
                             long long render_shift, float* __restrict__ normals) {
   static_assert(32 % LANES == 0, "lanes of a patch must share a warp");
-  __shared__ float ctrl[PB][2][30];
+  __shared__ __align__(16) float ctrl[PB][2][kCtrlStride];
   __shared__ float stage[PB][9][6];  // constraint column j: x (0-2), n (3-5)
   __shared__ float mcon[10][9];      // M_r's last 9 columns
   __shared__ int sedge[PB][3];
@@ -972,6 +1003,12 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
   v.edge_slot = a.upload(p.edge_slot);
   v.edge_flags = a.upload(p.edge_flags);
   v.grid_basis = a.upload(p.grid_basis);
+  {
+    std::vector<float> padded(12 * (size_t)p.grid, 0.0f);
+    for (int g = 0; g < p.grid; ++g)
+      for (int k = 0; k < 10; ++k) padded[12 * (size_t)g + k] = p.grid_basis[10 * (size_t)g + k];
+    v.grid_basis_padded = a.upload(padded);
+  }
   v.local_triangles = a.upload(p.local_triangles);
   v.output_owner = a.upload(p.output_owner);
   // Render-vertex tables stay on the host (the per-corner copy back gathers there); the

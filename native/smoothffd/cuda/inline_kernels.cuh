@@ -115,7 +115,7 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
              const PatchRender* __restrict__ prender, long long render_shift, float* __restrict__ normals) {
   static_assert(32 % LANES == 0 && LANES >= 4, "lanes of a patch share a warp; 3 of them adjust the edges");
   extern __shared__ float4 lattice_shared[];
-  __shared__ float ctrl[PB][2][30];
+  __shared__ __align__(16) float ctrl[PB][2][kCtrlStride];
   __shared__ float stage[PB][9][6];       // constraint column j: x (0-2), n (3-5)
   __shared__ float corner_jac[PB][3][9];  // Jacobians at the corners (constraint columns 0-2)
   __shared__ float edge_cp[PB][3][2][3];  // adjusted edge k: next to corner k, next to corner k+1

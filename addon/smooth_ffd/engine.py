@@ -22,6 +22,7 @@ class _State:
         self.source_stamp = None
         self.deformer = None
         self.plan_key = None
+        self.result = None        # the last core Result: its arrays are reused (out=)
 
 
 _states = {}
@@ -104,12 +105,16 @@ def _owned_by(ro, obj):
     return owner == obj.name_full
 
 
-def set_status(obj, mod, text, ok):
-    """Writes status + validity only when they change (each write re-tags the object)."""
+def set_status(obj, mod, text, ok, wrote_result=False):
+    """Writes status + validity only when they change, and re-tags the object for them.
+
+    wrote_result: the result mesh was just written, which re-evaluates the object anyway
+    (its modifier depends on the result object). Tagging the object too would tag its mesh
+    data on 3.4, and the post handler would then re-read the source mesh for nothing."""
     changed = False
     if compat.get_modifier_input(mod, "Status") != text:
         compat.set_modifier_input(mod, "Status", text)
-        changed = True
+        changed = not wrote_result
     if bool(compat.get_modifier_input(mod, "Show Result")) != ok:
         compat.set_modifier_input(mod, "Show Result", ok)
         changed = True
@@ -171,11 +176,12 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
                                                   lattice_to_object=l2o, strength=settings.strength)
         plan_key = (source.key, lattice.structure_key(), level, backend)
         if st.deformer is None or st.plan_key != plan_key:
-            st.deformer = None
+            st.deformer = st.result = None
             with _progress(len(source.corner_vertices) * level * level > 2_000_000):
                 st.deformer = core.make_deformer(source, lattice, level, backend)
             st.plan_key = plan_key
-        res = st.deformer.deform(lattice)
+        # out=: overwrite the previous update's arrays in place (no fresh pages each edit).
+        res = st.result = st.deformer.deform(lattice, out=st.result)
         t1 = time.perf_counter()
         times = _write_result(obj, ro.data, res, source, logic.digest(plan_key), exact)
         normals = times.pop("normals")
@@ -184,7 +190,7 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
         used = res.stats.get("device", backend) if isinstance(res.stats, dict) else backend
         set_status(obj, mod, f"OK {used}, level {level}, {len(res.triangles)} tris, "
                              f"deform {1e3 * (t1 - t0):.1f} ms, write {1e3 * (t2 - t1):.1f} ms"
-                             f" ({normals} normals)", True)
+                             f" ({normals} normals)", True, wrote_result=True)
         _last_timing[(obj.name_full, mod.name)] = {
             "deform_ms": 1e3 * (t1 - t0), "write_ms": 1e3 * (t2 - t1), "normals": normals,
             "level": level, "triangles": len(res.triangles), "stats": res.stats, **times}

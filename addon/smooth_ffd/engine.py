@@ -124,14 +124,22 @@ def set_status(obj, mod, text, ok, wrote_result=False):
         print(f"Smooth FFD [{obj.name} / {mod.name}]: {text}")
 
 
+def _group_index(obj, settings):
+    if not settings.vertex_group:
+        return None
+    idx = obj.vertex_groups.find(settings.vertex_group)
+    # Like Blender's Lattice modifier, an unknown group name means no weighting.
+    return idx if idx >= 0 else None
+
+
+def _source_stamp(mesh, group_index, settings):
+    return (group_index, settings.invert, len(mesh.vertices), len(mesh.loops), len(mesh.polygons))
+
+
 def _source(obj, settings, st, mesh_changed):
-    group_index = None
-    if settings.vertex_group:
-        idx = obj.vertex_groups.find(settings.vertex_group)
-        # Like Blender's Lattice modifier, an unknown group name means no weighting.
-        group_index = idx if idx >= 0 else None
+    group_index = _group_index(obj, settings)
     mesh = obj.data
-    stamp = (group_index, settings.invert, len(mesh.vertices), len(mesh.loops), len(mesh.polygons))
+    stamp = _source_stamp(mesh, group_index, settings)
     if st.source is not None and not mesh_changed and st.source_stamp == stamp:
         return st.source
     if obj.mode == 'EDIT':
@@ -149,28 +157,31 @@ def _source(obj, settings, st, mesh_changed):
     return st.source
 
 
-def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=False):
+def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=False,
+                    early=False):
     """Brings one modifier's result up to date; returns True when it wrote new geometry.
 
     Errors never propagate: they go to the status line and the console, and the modifier
     passes the source geometry through (the source mesh itself is never written).
+
+    early: called from depsgraph_update_pre, before Blender evaluates the edit (see
+    _early_inputs): computes from the original data only where that provably equals what the
+    evaluation will give, else does nothing; never reports errors (the post handler, which
+    checks every input again against the evaluated data, does).
     """
     st = _state(obj, mod)
     try:
-        settings = Settings(mod)
-        level = logic.parse_level(settings.render_level if render else settings.viewport_level,
-                                  "render level" if render else "viewport level")
-        backend = logic.parse_backend(settings.backend)
-        # Exact custom normals on 3.4-4.0 only when asked for (slow); 4.1+ always exact.
-        exact = render or settings.exact or compat.HAS_CORNER_NORMALS
-        rest, pts, interp, shape, lattice_key = latticeio.read_lattice(settings.lattice, depsgraph)
-        l2o = logic.lattice_to_object(latticeio.world_matrix(obj, depsgraph),
-                                      latticeio.world_matrix(settings.lattice, depsgraph))
-        source = _source(obj, settings, st, mesh_changed)
-        ro = result_object(obj, mod)
-        key = logic.digest(lattice_key, l2o, settings.strength, source.key, level, backend, exact)
+        inputs = _early_inputs(obj, mod, st) if early else \
+            _inputs(obj, mod, st, depsgraph, render, mesh_changed)
+        if inputs is None:
+            return False
+        settings, level, backend, exact, lattice_data, l2o, source, key = inputs
+        ro = result_object(obj, mod, create=not early)
+        if ro is None:
+            return False
         if not force and key == st.last_key and _result_matches(ro.data, st):
             return False
+        rest, pts, interp = lattice_data
         t0 = time.perf_counter()
         lattice = core.smoothffd().BlenderLattice(rest, pts, interpolation=interp,
                                                   lattice_to_object=l2o, strength=settings.strength)
@@ -193,13 +204,82 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
                              f" ({normals} normals)", True, wrote_result=True)
         _last_timing[(obj.name_full, mod.name)] = {
             "deform_ms": 1e3 * (t1 - t0), "write_ms": 1e3 * (t2 - t1), "normals": normals,
-            "level": level, "triangles": len(res.triangles), "stats": res.stats, **times}
+            "level": level, "triangles": len(res.triangles), "stats": res.stats,
+            "early": early, **times}
+        counters["computed"] += 1
+        counters["early" if early else "post"] += 1
         return True
     except logic.SmoothFFDError as e:
+        if early:
+            return False
         _fail(obj, mod, st, str(e))
     except Exception as e:   # a bug or a core error: report it, never take Blender down
+        if early:
+            st.last_key = None   # whatever happened, the post handler recomputes
+            return False
         _fail(obj, mod, st, f"{type(e).__name__}: {e}")
     return False
+
+
+# How many results were computed, and where (tests and benchmarks read these).
+counters = {"computed": 0, "early": 0, "post": 0}
+
+
+def _level_backend_exact(settings, render):
+    level = logic.parse_level(settings.render_level if render else settings.viewport_level,
+                              "render level" if render else "viewport level")
+    backend = logic.parse_backend(settings.backend)
+    # Exact custom normals on 3.4-4.0 only when asked for (slow); 4.1+ always exact.
+    exact = render or settings.exact or compat.HAS_CORNER_NORMALS
+    return level, backend, exact
+
+
+def _key(lattice_key, l2o, settings, source, level, backend, exact):
+    return logic.digest(lattice_key, l2o, settings.strength, source.key, level, backend, exact)
+
+
+def _inputs(obj, mod, st, depsgraph, render, mesh_changed):
+    """Everything one update uses, from the evaluated depsgraph, and its fingerprint."""
+    settings = Settings(mod)
+    level, backend, exact = _level_backend_exact(settings, render)
+    rest, pts, interp, shape, lattice_key = latticeio.read_lattice(settings.lattice, depsgraph)
+    l2o = logic.lattice_to_object(latticeio.world_matrix(obj, depsgraph),
+                                  latticeio.world_matrix(settings.lattice, depsgraph))
+    source = _source(obj, settings, st, mesh_changed)
+    key = _key(lattice_key, l2o, settings, source, level, backend, exact)
+    return settings, level, backend, exact, (rest, pts, interp), l2o, source, key
+
+
+def _early_inputs(obj, mod, st):
+    """The inputs read before Blender evaluates an edit (depsgraph_update_pre), or None.
+
+    On 3.4 a lattice edit is evaluated twice: the Smooth FFD modifier depends on its Lattice
+    input, so Blender re-evaluates it (with the old result) before depsgraph_update_post
+    runs, and once more after the post handler wrote the new result. Writing the result in
+    depsgraph_update_pre instead leaves one evaluation, of the new result. Before the
+    evaluation only the original data are known, so this computes only when they equal the
+    evaluated values: a lattice without modifiers (hooks), shape keys or animation, objects
+    whose world matrix is their own loc/rot/scale (no parent, constraints, animation, rigid
+    body), a source already read, viewport level. The post handler reads the evaluated data
+    as always and recomputes if the fingerprint still differs.
+    """
+    if st.source is None or st.last_key is None:
+        return None
+    settings = Settings(mod)
+    lat = settings.lattice
+    if lat is None or lat.type != 'LATTICE' or not latticeio.evaluates_to_original(lat):
+        return None
+    obj_matrix, lat_matrix = latticeio.basis_matrix(obj), latticeio.basis_matrix(lat)
+    if obj_matrix is None or lat_matrix is None:
+        return None
+    group_index = _group_index(obj, settings)
+    if st.source_stamp != _source_stamp(obj.data, group_index, settings):
+        return None
+    level, backend, exact = _level_backend_exact(settings, False)
+    rest, pts, interp, shape, lattice_key = latticeio.read_lattice(lat, None)
+    l2o = logic.lattice_to_object(obj_matrix, lat_matrix)
+    key = _key(lattice_key, l2o, settings, st.source, level, backend, exact)
+    return settings, level, backend, exact, (rest, pts, interp), l2o, st.source, key
 
 
 _last_timing = {}

@@ -2,8 +2,8 @@
 viewport levels 4 and 10 beside Blender's Lattice + Subdivision Surface at the same density
 (levels 2 and 3), in the same run. Prints, asserts nothing.
 
-    blender -b --factory-startup --python blender_scenes/bench_addon.py [-- REPEATS]
-    build/venv-bpy/bin/python blender_scenes/bench_addon.py [REPEATS]
+    blender -b --factory-startup --python blender_scenes/bench_addon.py [-- REPEATS [ab]]
+    build/venv-bpy/bin/python blender_scenes/bench_addon.py [REPEATS [ab]]
 
 Each row splits its median update into where the time went, from marker handlers placed
 first and last in depsgraph_update_pre/post: "pre" (Smooth FFD's work in
@@ -23,7 +23,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "addon"))
 import smooth_ffd  # noqa: E402
-from smooth_ffd import compat, engine  # noqa: E402
+from smooth_ffd import compat, engine, handlers  # noqa: E402
 
 
 def argv():
@@ -33,7 +33,9 @@ def argv():
     return [] if "--python" in a else a[1:]
 
 
-REPEATS = int(argv()[0]) if argv() else 3
+REPEATS = int(argv()[0]) if argv() else 5
+# "ab": Smooth FFD rows also without the add-on's depsgraph_update_pre handler, interleaved.
+AB = "ab" in argv()[1:]
 
 
 def sphere(name):
@@ -109,36 +111,56 @@ def _phases(t0, t_end):
             "eval2": t_end - post_e}
 
 
-def time_edit(lat, obj, repeats, mod=None):
-    """Median ms from moving one lattice point to the evaluated mesh being ready, and the
-    median of each phase (see the module docstring) and of Smooth FFD's own timings.
+def _set_early(on):
+    """Installs or removes the add-on's depsgraph_update_pre handler (A/B runs only)."""
+    lst = bpy.app.handlers.depsgraph_update_pre
+    fn = handlers.on_depsgraph_update_pre
+    if on and fn not in lst:
+        lst.append(fn)
+    elif not on and fn in lst:
+        lst.remove(fn)
+
+
+def time_edit(lat, obj, repeats, mod=None, early_modes=(True,)):
+    """{early: (median ms, split)}: ms from moving one lattice point to the evaluated mesh
+    being ready, and the median of each phase (see the module docstring) and of Smooth
+    FFD's own timings. With early_modes=(True, False) the updates alternate between the
+    add-on as shipped and the add-on without its depsgraph_update_pre handler (interleaved,
+    so that both see the same machine load).
 
     Blender 4.x/5.x evaluate a final Subdivision Surface lazily, when the mesh is first
     accessed, so the timing includes that access (len(vertices)) for both stacks."""
-    _install_markers()
-    times, phases, own = [], [], []
+    samples = {e: ([], [], []) for e in early_modes}
     p = lat.data.points[62]
     for i in range(repeats):
-        p.co_deform.z += 0.01 * (1 if i % 2 == 0 else -1)
-        _marks.clear()
-        t = time.perf_counter()
-        bpy.context.view_layer.update()
-        dg = bpy.context.evaluated_depsgraph_get()
-        len(obj.evaluated_get(dg).data.vertices)
-        t_end = time.perf_counter()
-        times.append(1e3 * (t_end - t))
-        phases.append({k: 1e3 * v for k, v in _phases(t, t_end).items()})
-        lt = engine.last_timing(obj, mod) if mod is not None else None
-        if lt:
-            own.append(lt)
+        for early in early_modes:
+            _set_early(early)
+            _install_markers()
+            times, phases, own = samples[early]
+            p.co_deform.z += 0.01 * (1 if i % 2 == 0 else -1)
+            _marks.clear()
+            t = time.perf_counter()
+            bpy.context.view_layer.update()
+            dg = bpy.context.evaluated_depsgraph_get()
+            len(obj.evaluated_get(dg).data.vertices)
+            t_end = time.perf_counter()
+            times.append(1e3 * (t_end - t))
+            phases.append({k: 1e3 * v for k, v in _phases(t, t_end).items()})
+            lt = engine.last_timing(obj, mod) if mod is not None else None
+            if lt:
+                own.append(lt)
+    _set_early(True)
     med = lambda xs: float(np.median(xs)) if xs else 0.0
-    split = {k: med([ph[k] for ph in phases]) for k in phases[0]}
-    for k in ("deform_ms", "mesh_write_ms", "normals_ms"):
-        split[k] = med([lt.get(k, 0.0) for lt in own])
-    split["core_ms"] = med([lt.get("stats", {}).get("deform_ms", 0.0) for lt in own])
-    split["normals_path"] = own[-1].get("normals") if own else None
-    split["device"] = own[-1].get("stats", {}).get("device") if own else None
-    return med(times), split
+    out = {}
+    for early, (times, phases, own) in samples.items():
+        split = {k: med([ph[k] for ph in phases]) for k in phases[0]}
+        for k in ("deform_ms", "mesh_write_ms", "normals_ms"):
+            split[k] = med([lt.get(k, 0.0) for lt in own])
+        split["core_ms"] = med([lt.get("stats", {}).get("deform_ms", 0.0) for lt in own])
+        split["normals_path"] = own[-1].get("normals") if own else None
+        split["device"] = own[-1].get("stats", {}).get("device") if own else None
+        out[early] = (med(times), split)
+    return out
 
 
 def _phase_text(split):
@@ -168,7 +190,7 @@ def main():
         ref.modifiers.new("Subsurf", 'SUBSURF').levels = level
         only_visible(ref)
         bpy.context.view_layer.update()
-        ms, split = time_edit(lat, ref, REPEATS)
+        ms, split = time_edit(lat, ref, REPEATS)[True]
         rows.append((f"Lattice + Subsurf level {level}", evaluated_tris(ref), ms, _phase_text(split)))
         bpy.data.objects.remove(ref)
 
@@ -184,13 +206,15 @@ def main():
             obj.update_tag()
             bpy.context.view_layer.update()
             first = 1e3 * (time.perf_counter() - t)
-            ms, split = time_edit(lat, obj, REPEATS, mod)
-            detail = (f"{_phase_text(split)}; deform {split['deform_ms']:.0f} (core "
-                      f"{split['core_ms']:.0f}), mesh write {split['mesh_write_ms']:.0f}, normals "
-                      f"{split['normals_ms']:.0f} [{split['normals_path']}]; first update (plan) "
-                      f"{first:.0f} ms, device {split['device']}")
-            name = f"Smooth FFD level {level}" + (" exact normals" if exact else "")
-            rows.append((name, evaluated_tris(obj), ms, detail))
+            timed = time_edit(lat, obj, REPEATS, mod, (True, False) if AB else (True,))
+            for early, (ms, split) in timed.items():
+                detail = (f"{_phase_text(split)}; deform {split['deform_ms']:.0f} (core "
+                          f"{split['core_ms']:.0f}), mesh write {split['mesh_write_ms']:.0f}, "
+                          f"normals {split['normals_ms']:.0f} [{split['normals_path']}]; first "
+                          f"update (plan) {first:.0f} ms, device {split['device']}")
+                name = f"Smooth FFD level {level}" + (" exact normals" if exact else "") + \
+                    ("" if early else " no pre")
+                rows.append((name, evaluated_tris(obj), ms, detail))
             smooth_ffd.remove_smooth_ffd(obj, mod)
             bpy.data.objects.remove(obj)
     print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}; "

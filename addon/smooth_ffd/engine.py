@@ -209,20 +209,20 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
         counters["computed"] += 1
         counters["early" if early else "post"] += 1
         return True
-    except logic.SmoothFFDError as e:
-        if early:
-            return False
-        _fail(obj, mod, st, str(e))
     except Exception as e:   # a bug or a core error: report it, never take Blender down
         if early:
-            st.last_key = None   # whatever happened, the post handler recomputes
+            # Left to the post handler, which reads the same inputs again and reports what
+            # fails. st.last_key only changes after a complete write, so a result left half
+            # written here never matches the next key (or its topology token) and is redone.
+            counters["early_errors"] += 1
             return False
-        _fail(obj, mod, st, f"{type(e).__name__}: {e}")
+        _fail(obj, mod, st, str(e) if isinstance(e, logic.SmoothFFDError)
+              else f"{type(e).__name__}: {e}")
     return False
 
 
 # How many results were computed, and where (tests and benchmarks read these).
-counters = {"computed": 0, "early": 0, "post": 0}
+counters = {"computed": 0, "early": 0, "post": 0, "early_errors": 0}
 
 
 def _level_backend_exact(settings, render):

@@ -10,7 +10,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
 import smooth_ffd  # noqa: E402
-from smooth_ffd import compat, engine, meshio  # noqa: E402
+from smooth_ffd import compat, engine, latticeio, meshio  # noqa: E402
 
 TOL = 1e-5
 
@@ -71,10 +71,15 @@ def test_lattice_edits():
 
 
 def _computations(fn):
-    """Runs fn (an edit + update); returns how many results were computed, and where."""
+    """Runs fn (an edit + update); returns how many results were computed, and where (an
+    early computation that failed is a failure of its own)."""
     before = dict(engine.counters)
     fn()
-    return {k: engine.counters[k] - before[k] for k in before}
+    n = {k: engine.counters[k] - before[k] for k in before}
+    errors = n.pop("early_errors")
+    if errors:
+        T.check("no failed early computation", False, f"{errors} failed")
+    return n
 
 
 def test_update_path():
@@ -143,6 +148,24 @@ def test_update_path():
     n = _computations(move(0.1, lat.data.points[7]))
     parity("resized lattice moved: parity", obj, lat, ref, mod)
     T.check("resized lattice moved: one computation", n["computed"] == 1, str(n))
+    # An early computation that fails (here: an injected error) leaves the edit to the post
+    # handler, once; later updates without edits compute nothing.
+    read_lattice = latticeio.read_lattice
+    def broken(lat_obj, depsgraph):
+        if depsgraph is None:
+            raise RuntimeError("injected")
+        return read_lattice(lat_obj, depsgraph)
+    latticeio.read_lattice = broken
+    try:
+        before = dict(engine.counters)
+        move(0.05, lat.data.points[3])()
+        T.update()
+        n = {k: engine.counters[k] - before[k] for k in before}
+    finally:
+        latticeio.read_lattice = read_lattice
+    parity("failed early computation: parity", obj, lat, ref, mod)
+    T.check("failed early computation: computed after the evaluation, once",
+            n == {"computed": 1, "early": 0, "post": 1, "early_errors": 1}, str(n))
     # Lattice in edit mode (how points are moved interactively): still computed early.
     bpy.context.view_layer.objects.active = lat
     bpy.ops.object.mode_set(mode='EDIT')

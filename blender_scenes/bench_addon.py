@@ -2,8 +2,15 @@
 viewport levels 4 and 10 beside Blender's Lattice + Subdivision Surface at the same density
 (levels 2 and 3), in the same run. Prints, asserts nothing.
 
-    blender -b --factory-startup --python blender_scenes/bench_addon.py [-- REPEATS]
-    build/venv-bpy/bin/python blender_scenes/bench_addon.py [REPEATS]
+    blender -b --factory-startup --python blender_scenes/bench_addon.py [-- REPEATS [ab]]
+    build/venv-bpy/bin/python blender_scenes/bench_addon.py [REPEATS [ab]]
+
+Each row splits its median update into where the time went, from marker handlers placed
+first and last in depsgraph_update_pre/post: "pre" (Smooth FFD's work in
+depsgraph_update_pre), "eval1" (Blender's evaluation before depsgraph_update_post), "post"
+(Smooth FFD's work in depsgraph_update_post) and "eval2" (the second evaluation Blender runs
+when a post handler tagged something, plus reading the mesh); inside the Smooth FFD work:
+deform (core), mesh write, normals.
 """
 import os
 import sys
@@ -16,7 +23,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "addon"))
 import smooth_ffd  # noqa: E402
-from smooth_ffd import compat, engine  # noqa: E402
+from smooth_ffd import compat, engine, handlers  # noqa: E402
 
 
 def argv():
@@ -26,7 +33,9 @@ def argv():
     return [] if "--python" in a else a[1:]
 
 
-REPEATS = int(argv()[0]) if argv() else 3
+REPEATS = int(argv()[0]) if argv() else 5
+# "ab": Smooth FFD rows also without the add-on's depsgraph_update_pre handler, interleaved.
+AB = "ab" in argv()[1:]
 
 
 def sphere(name):
@@ -63,21 +72,100 @@ def only_visible(obj):
             o.hide_viewport = o is not obj
 
 
-def time_edit(lat, obj, repeats):
-    """ms from moving one lattice point to the evaluated mesh being ready (median).
+_marks = []
+
+
+def _mark(name):
+    def handler(*_args):
+        _marks.append((name, time.perf_counter()))
+    handler.__name__ = f"bench_mark_{name}"
+    return handler
+
+
+_MARKERS = (("depsgraph_update_pre", 0, _mark("pre_begin")),
+            ("depsgraph_update_pre", None, _mark("pre_end")),
+            ("depsgraph_update_post", 0, _mark("post_begin")),
+            ("depsgraph_update_post", None, _mark("post_end")))
+
+
+def _install_markers():
+    """Markers first and last in the handler lists (after the add-on registered its own)."""
+    for name, index, fn in _MARKERS:
+        lst = getattr(bpy.app.handlers, name)
+        if fn in lst:
+            lst.remove(fn)
+        if index is None:
+            lst.append(fn)
+        else:
+            lst.insert(index, fn)
+
+
+def _phases(t0, t_end):
+    """ms per phase of one update from the markers (first pre/post call of the update)."""
+    first = {}
+    for name, t in _marks:
+        first.setdefault(name, t)
+    pre_b, pre_e = first.get("pre_begin", t0), first.get("pre_end", t0)
+    post_b, post_e = first.get("post_begin", t_end), first.get("post_end", t_end)
+    return {"pre": pre_e - pre_b, "eval1": post_b - pre_e, "post": post_e - post_b,
+            "eval2": t_end - post_e}
+
+
+def _set_early(on):
+    """Installs or removes the add-on's depsgraph_update_pre handler (A/B runs only)."""
+    lst = bpy.app.handlers.depsgraph_update_pre
+    fn = handlers.on_depsgraph_update_pre
+    if on and fn not in lst:
+        lst.append(fn)
+    elif not on and fn in lst:
+        lst.remove(fn)
+
+
+def time_edit(lat, obj, repeats, mod=None, early_modes=(True,)):
+    """{early: (median ms, split)}: ms from moving one lattice point to the evaluated mesh
+    being ready, and the median of each phase (see the module docstring) and of Smooth
+    FFD's own timings. With early_modes=(True, False) the updates alternate between the
+    add-on as shipped and the add-on without its depsgraph_update_pre handler (interleaved,
+    so that both see the same machine load).
 
     Blender 4.x/5.x evaluate a final Subdivision Surface lazily, when the mesh is first
     accessed, so the timing includes that access (len(vertices)) for both stacks."""
-    times = []
+    samples = {e: ([], [], []) for e in early_modes}
     p = lat.data.points[62]
     for i in range(repeats):
-        p.co_deform.z += 0.01 * (1 if i % 2 == 0 else -1)
-        t = time.perf_counter()
-        bpy.context.view_layer.update()
-        dg = bpy.context.evaluated_depsgraph_get()
-        len(obj.evaluated_get(dg).data.vertices)
-        times.append(1e3 * (time.perf_counter() - t))
-    return float(np.median(times))
+        for early in early_modes:
+            _set_early(early)
+            _install_markers()
+            times, phases, own = samples[early]
+            p.co_deform.z += 0.01 * (1 if i % 2 == 0 else -1)
+            _marks.clear()
+            t = time.perf_counter()
+            bpy.context.view_layer.update()
+            dg = bpy.context.evaluated_depsgraph_get()
+            len(obj.evaluated_get(dg).data.vertices)
+            t_end = time.perf_counter()
+            times.append(1e3 * (t_end - t))
+            phases.append({k: 1e3 * v for k, v in _phases(t, t_end).items()})
+            lt = engine.last_timing(obj, mod) if mod is not None else None
+            if lt:
+                own.append(lt)
+    _set_early(True)
+    med = lambda xs: float(np.median(xs)) if xs else 0.0
+    out = {}
+    for early, (times, phases, own) in samples.items():
+        split = {k: med([ph[k] for ph in phases]) for k in phases[0]}
+        for k in ("deform_ms", "mesh_write_ms", "normals_ms"):
+            split[k] = med([lt.get(k, 0.0) for lt in own])
+        split["core_ms"] = med([lt.get("stats", {}).get("deform_ms", 0.0) for lt in own])
+        split["normals_path"] = own[-1].get("normals") if own else None
+        split["device"] = own[-1].get("stats", {}).get("device") if own else None
+        out[early] = (med(times), split)
+    return out
+
+
+def _phase_text(split):
+    return (f"pre {split['pre']:.0f} + eval1 {split['eval1']:.0f} + post {split['post']:.0f}"
+            f" + eval2 {split['eval2']:.0f}")
 
 
 def evaluated_tris(obj):
@@ -93,7 +181,8 @@ def main():
         bpy.data.objects.remove(o)
     lat = lattice()
     print(f"Blender {bpy.app.version_string}, {os.cpu_count()} CPUs; sphere 46,800 triangles, "
-          f"lattice 5x5x5 B-spline; one live update = move a lattice point + depsgraph update")
+          f"lattice 5x5x5 B-spline; one live update = move a lattice point + depsgraph update; "
+          f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     rows = []
     for level in (2, 3):
         ref = sphere(f"stack{level}")
@@ -101,8 +190,8 @@ def main():
         ref.modifiers.new("Subsurf", 'SUBSURF').levels = level
         only_visible(ref)
         bpy.context.view_layer.update()
-        ms = time_edit(lat, ref, REPEATS)
-        rows.append((f"Lattice + Subsurf level {level}", evaluated_tris(ref), ms, ""))
+        ms, split = time_edit(lat, ref, REPEATS)[True]
+        rows.append((f"Lattice + Subsurf level {level}", evaluated_tris(ref), ms, _phase_text(split)))
         bpy.data.objects.remove(ref)
 
     modes = [False] if compat.HAS_CORNER_NORMALS else [False, True]   # 3.4-4.0: fast + exact
@@ -111,26 +200,28 @@ def main():
             obj = sphere(f"sffd{level}")
             only_visible(obj)
             t = time.perf_counter()
-            mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=level, render_level=level)
+            mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=level, render_level=level,
+                                            backend="cpu")
             compat.set_modifier_input(mod, "Exact Normals", exact)
             obj.update_tag()
             bpy.context.view_layer.update()
             first = 1e3 * (time.perf_counter() - t)
-            ms = time_edit(lat, obj, REPEATS)
-            lt = engine.last_timing(obj, mod) or {}
-            st = lt.get("stats", {})
-            detail = (f"deform {lt.get('deform_ms', 0):.0f} (core {st.get('deform_ms', 0):.0f}) + "
-                      f"mesh write {lt.get('mesh_write_ms', 0):.0f} + normals "
-                      f"{lt.get('normals_ms', 0):.0f} [{lt.get('normals')}] + tag "
-                      f"{lt.get('tag_ms', 0):.0f}; first update (plan) {first:.0f} ms, "
-                      f"device {st.get('device')}")
-            name = f"Smooth FFD level {level}" + (" exact normals" if exact else "")
-            rows.append((name, evaluated_tris(obj), ms, detail))
+            timed = time_edit(lat, obj, REPEATS, mod, (True, False) if AB else (True,))
+            for early, (ms, split) in timed.items():
+                detail = (f"{_phase_text(split)}; deform {split['deform_ms']:.0f} (core "
+                          f"{split['core_ms']:.0f}), mesh write {split['mesh_write_ms']:.0f}, "
+                          f"normals {split['normals_ms']:.0f} [{split['normals_path']}]; first "
+                          f"update (plan) {first:.0f} ms, device {split['device']}")
+                name = f"Smooth FFD level {level}" + (" exact normals" if exact else "") + \
+                    ("" if early else " no pre")
+                rows.append((name, evaluated_tris(obj), ms, detail))
             smooth_ffd.remove_smooth_ffd(obj, mod)
             bpy.data.objects.remove(obj)
-    print(f"{'':34s} {'triangles':>10s} {'update ms':>10s}")
+    print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}; "
+          f"median of {REPEATS} updates; phases in ms (medians, so they need not add up)")
+    print(f"{'':34s} {'triangles':>10s} {'update ms':>10s} {'ns/tri':>7s}")
     for name, tris, ms, detail in rows:
-        print(f"{name:34s} {tris:10d} {ms:10.0f}   {detail}")
+        print(f"{name:34s} {tris:10d} {ms:10.0f} {1e6 * ms / tris:7.0f}   {detail}")
     sys.stdout.flush()
 
 

@@ -23,6 +23,7 @@ class _State:
         self.source_stamp = None
         self.deformer = None
         self.plan_key = None
+        self.result = None        # the last core Result: its arrays are reused (out=)
         self.carry = None         # carry.CarryMap of the current plan (UV maps, groups)
         self.carry_key = None
         self.status_base = None   # last "OK ..." status, without the stack warning
@@ -113,12 +114,16 @@ def _owned_by(ro, obj):
     return owner == obj.name_full
 
 
-def set_status(obj, mod, text, ok):
-    """Writes status + validity only when they change (each write re-tags the object)."""
+def set_status(obj, mod, text, ok, wrote_result=False):
+    """Writes status + validity only when they change, and re-tags the object for them.
+
+    wrote_result: the result mesh was just written, which re-evaluates the object anyway
+    (its modifier depends on the result object). Tagging the object too would tag its mesh
+    data on 3.4, and the post handler would then re-read the source mesh for nothing."""
     changed = False
     if compat.get_modifier_input(mod, "Status") != text:
         compat.set_modifier_input(mod, "Status", text)
-        changed = True
+        changed = not wrote_result
     if bool(compat.get_modifier_input(mod, "Show Result")) != ok:
         compat.set_modifier_input(mod, "Show Result", ok)
         changed = True
@@ -128,16 +133,25 @@ def set_status(obj, mod, text, ok):
         print(f"Smooth FFD [{obj.name} / {mod.name}]: {text}")
 
 
-def _source(obj, settings, st, mesh_changed):
-    group_index = None
-    if settings.vertex_group:
-        idx = obj.vertex_groups.find(settings.vertex_group)
-        # Like Blender's Lattice modifier, an unknown group name means no weighting.
-        group_index = idx if idx >= 0 else None
+def _group_index(obj, settings):
+    if not settings.vertex_group:
+        return None
+    idx = obj.vertex_groups.find(settings.vertex_group)
+    # Like Blender's Lattice modifier, an unknown group name means no weighting.
+    return idx if idx >= 0 else None
+
+
+def _source_stamp(obj, group_index, settings):
     mesh = obj.data
+    return (group_index, settings.invert, len(mesh.vertices), len(mesh.loops), len(mesh.polygons),
+            tuple(g.name for g in obj.vertex_groups), tuple(layer.name for layer in mesh.uv_layers))
+
+
+def _source(obj, settings, st, mesh_changed):
+    group_index = _group_index(obj, settings)
+    mesh = obj.data
+    stamp = _source_stamp(obj, group_index, settings)
     names = [g.name for g in obj.vertex_groups]
-    stamp = (group_index, settings.invert, len(mesh.vertices), len(mesh.loops), len(mesh.polygons),
-             tuple(names), tuple(layer.name for layer in mesh.uv_layers))
     if st.source is not None and not mesh_changed and st.source_stamp == stamp:
         return st.source
     if obj.mode == 'EDIT':
@@ -157,42 +171,45 @@ def _source(obj, settings, st, mesh_changed):
     return st.source
 
 
-def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=False):
+def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=False,
+                    early=False):
     """Brings one modifier's result up to date; returns True when it wrote new geometry.
 
     Errors never propagate: they go to the status line and the console, and the modifier
     passes the source geometry through (the source mesh itself is never written).
+
+    early: called from depsgraph_update_pre, before Blender evaluates the edit (see
+    _early_inputs): computes from the original data only where that provably equals what the
+    evaluation will give, else does nothing; never reports errors (the post handler, which
+    checks every input again against the evaluated data, does).
     """
     st = _state(obj, mod)
     try:
-        settings = Settings(mod)
-        level = logic.parse_level(settings.render_level if render else settings.viewport_level,
-                                  "render level" if render else "viewport level")
-        backend = logic.parse_backend(settings.backend)
-        # Exact custom normals on 3.4-4.0 only when asked for (slow); 4.1+ always exact.
-        exact = render or settings.exact or compat.HAS_CORNER_NORMALS
-        rest, pts, interp, shape, lattice_key = latticeio.read_lattice(settings.lattice, depsgraph)
-        l2o = logic.lattice_to_object(latticeio.world_matrix(obj, depsgraph),
-                                      latticeio.world_matrix(settings.lattice, depsgraph))
-        source = _source(obj, settings, st, mesh_changed)
-        ro = result_object(obj, mod)
+        inputs = _early_inputs(obj, mod, st) if early else \
+            _inputs(obj, mod, st, depsgraph, render, mesh_changed)
+        if inputs is None:
+            return False
+        settings, level, backend, exact, lattice_data, l2o, source, key = inputs
+        ro = result_object(obj, mod, create=not early)
+        if ro is None:
+            return False
         above = modifiers_above(obj, mod, render)
-        key = logic.digest(lattice_key, l2o, settings.strength, source.key, source.extras_key,
-                           level, backend, exact)
         if not force and key == st.last_key and _result_matches(ro.data, st):
             if above != st.above and st.status_base is not None:
                 _set_ok_status(obj, mod, st, st.status_base, above)
             return False
+        rest, pts, interp = lattice_data
         t0 = time.perf_counter()
         lattice = core.smoothffd().BlenderLattice(rest, pts, interpolation=interp,
                                                   lattice_to_object=l2o, strength=settings.strength)
         plan_key = (source.key, lattice.structure_key(), level, backend)
         if st.deformer is None or st.plan_key != plan_key:
-            st.deformer = None
+            st.deformer = st.result = None
             with _progress(len(source.corner_vertices) * level * level > 2_000_000):
                 st.deformer = core.make_deformer(source, lattice, level, backend)
             st.plan_key = plan_key
-        res = st.deformer.deform(lattice)
+        # out=: overwrite the previous update's arrays in place (no fresh pages each edit).
+        res = st.result = st.deformer.deform(lattice, out=st.result)
         t1 = time.perf_counter()
         times = _write_result(obj, ro, res, source, logic.digest(plan_key), exact, st)
         normals = times.pop("normals")
@@ -201,16 +218,87 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
         used = res.stats.get("device", backend) if isinstance(res.stats, dict) else backend
         _set_ok_status(obj, mod, st, f"OK {used}, level {level}, {len(res.triangles)} tris, "
                                      f"deform {1e3 * (t1 - t0):.1f} ms, write "
-                                     f"{1e3 * (t2 - t1):.1f} ms ({normals} normals)", above)
+                                     f"{1e3 * (t2 - t1):.1f} ms ({normals} normals)", above,
+                       wrote_result=True)
         _last_timing[(obj.name_full, mod.name)] = {
             "deform_ms": 1e3 * (t1 - t0), "write_ms": 1e3 * (t2 - t1), "normals": normals,
-            "level": level, "triangles": len(res.triangles), "stats": res.stats, **times}
+            "level": level, "triangles": len(res.triangles), "stats": res.stats,
+            "early": early, **times}
+        counters["computed"] += 1
+        counters["early" if early else "post"] += 1
         return True
-    except logic.SmoothFFDError as e:
-        _fail(obj, mod, st, str(e))
     except Exception as e:   # a bug or a core error: report it, never take Blender down
-        _fail(obj, mod, st, f"{type(e).__name__}: {e}")
+        if early:
+            # Left to the post handler, which reads the same inputs again and reports what
+            # fails. st.last_key only changes after a complete write, so a result left half
+            # written here never matches the next key (or its topology token) and is redone.
+            counters["early_errors"] += 1
+            return False
+        _fail(obj, mod, st, str(e) if isinstance(e, logic.SmoothFFDError)
+              else f"{type(e).__name__}: {e}")
     return False
+
+
+# How many results were computed, and where (tests and benchmarks read these).
+counters = {"computed": 0, "early": 0, "post": 0, "early_errors": 0}
+
+
+def _level_backend_exact(settings, render):
+    level = logic.parse_level(settings.render_level if render else settings.viewport_level,
+                              "render level" if render else "viewport level")
+    backend = logic.parse_backend(settings.backend)
+    # Exact custom normals on 3.4-4.0 only when asked for (slow); 4.1+ always exact.
+    exact = render or settings.exact or compat.HAS_CORNER_NORMALS
+    return level, backend, exact
+
+
+def _key(lattice_key, l2o, settings, source, level, backend, exact):
+    return logic.digest(lattice_key, l2o, settings.strength, source.key, source.extras_key, level,
+                        backend, exact)
+
+
+def _inputs(obj, mod, st, depsgraph, render, mesh_changed):
+    """Everything one update uses, from the evaluated depsgraph, and its fingerprint."""
+    settings = Settings(mod)
+    level, backend, exact = _level_backend_exact(settings, render)
+    rest, pts, interp, shape, lattice_key = latticeio.read_lattice(settings.lattice, depsgraph)
+    l2o = logic.lattice_to_object(latticeio.world_matrix(obj, depsgraph),
+                                  latticeio.world_matrix(settings.lattice, depsgraph))
+    source = _source(obj, settings, st, mesh_changed)
+    key = _key(lattice_key, l2o, settings, source, level, backend, exact)
+    return settings, level, backend, exact, (rest, pts, interp), l2o, source, key
+
+
+def _early_inputs(obj, mod, st):
+    """The inputs read before Blender evaluates an edit (depsgraph_update_pre), or None.
+
+    On 3.4 a lattice edit is evaluated twice: the Smooth FFD modifier depends on its Lattice
+    input, so Blender re-evaluates it (with the old result) before depsgraph_update_post
+    runs, and once more after the post handler wrote the new result. Writing the result in
+    depsgraph_update_pre instead leaves one evaluation, of the new result. Before the
+    evaluation only the original data are known, so this computes only when they equal the
+    evaluated values: a lattice without modifiers (hooks), shape keys or animation, objects
+    whose world matrix is their own loc/rot/scale (no parent, constraints, animation, rigid
+    body), a source already read, viewport level. The post handler reads the evaluated data
+    as always and recomputes if the fingerprint still differs.
+    """
+    if st.source is None or st.last_key is None:
+        return None
+    settings = Settings(mod)
+    lat = settings.lattice
+    if lat is None or lat.type != 'LATTICE' or not latticeio.evaluates_to_original(lat):
+        return None
+    obj_matrix, lat_matrix = latticeio.basis_matrix(obj), latticeio.basis_matrix(lat)
+    if obj_matrix is None or lat_matrix is None:
+        return None
+    group_index = _group_index(obj, settings)
+    if st.source_stamp != _source_stamp(obj, group_index, settings):
+        return None
+    level, backend, exact = _level_backend_exact(settings, False)
+    rest, pts, interp, shape, lattice_key = latticeio.read_lattice(lat, None)
+    l2o = logic.lattice_to_object(obj_matrix, lat_matrix)
+    key = _key(lattice_key, l2o, settings, st.source, level, backend, exact)
+    return settings, level, backend, exact, (rest, pts, interp), l2o, st.source, key
 
 
 _last_timing = {}
@@ -253,12 +341,13 @@ def stack_warning(count):
             f"object's own mesh); move it first")
 
 
-def _set_ok_status(obj, mod, st, base, above):
+def _set_ok_status(obj, mod, st, base, above, wrote_result=False):
     st.status_base = base
     if above and above != st.above:   # once per change, not on every update
         print(f"Smooth FFD [{obj.name} / {mod.name}]: {stack_warning(above)}")
     st.above = above
-    set_status(obj, mod, f"{base} \u2014 {stack_warning(above)}" if above else base, True)
+    set_status(obj, mod, f"{base} \u2014 {stack_warning(above)}" if above else base, True,
+               wrote_result=wrote_result)
 
 
 def _fail(obj, mod, st, message):

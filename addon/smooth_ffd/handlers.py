@@ -81,6 +81,23 @@ def _changed_ids(depsgraph):
 
 
 @persistent
+def on_depsgraph_update_pre(scene, depsgraph=None):
+    """Writes the result before Blender evaluates an edit, where the original data give the
+    evaluated inputs (engine._early_inputs): Blender then evaluates the modifier once, with
+    the new result, instead of once with the old one and again after on_depsgraph_update."""
+    global _busy
+    if _busy or _rendering:
+        return
+    _busy = True
+    try:
+        for obj, mod in smooth_ffd_modifiers(scene):
+            if mod.show_viewport:
+                engine.update_modifier(obj, mod, None, early=True)
+    finally:
+        _busy = False
+
+
+@persistent
 def on_depsgraph_update(scene, depsgraph=None):
     if _busy or depsgraph is None:
         return
@@ -139,6 +156,7 @@ def is_rendering():
 
 
 _HANDLERS = (
+    ("depsgraph_update_pre", on_depsgraph_update_pre),
     ("depsgraph_update_post", on_depsgraph_update),
     ("frame_change_post", on_frame_change),
     ("load_post", on_load),

@@ -54,3 +54,31 @@ def world_matrix(obj, depsgraph):
     """The evaluated world matrix (animation, constraints, parents) as a (4, 4) float64 array."""
     ob = obj.evaluated_get(depsgraph) if depsgraph is not None else obj
     return np.array(ob.matrix_world, dtype=np.float64)
+
+
+# --- reading before evaluation (depsgraph_update_pre) --------------------------------------
+
+def _animated(id_data):
+    """Whether animation or drivers may change id_data's properties on evaluation."""
+    ad = getattr(id_data, "animation_data", None)
+    return ad is not None and (ad.action is not None or len(ad.drivers) > 0
+                               or len(ad.nla_tracks) > 0)
+
+
+def evaluates_to_original(lattice_obj):
+    """Whether the evaluated lattice points are the original ones (read_lattice(obj, None)):
+    no lattice modifiers (hooks), shape keys or animated points."""
+    data = lattice_obj.data
+    return (len(lattice_obj.modifiers) == 0 and data.shape_keys is None
+            and not _animated(data))
+
+
+def basis_matrix(obj):
+    """The world matrix the depsgraph will compute, from the original object, when it is
+    just the object's own loc/rot/scale (Blender computes both with the same function, so
+    they are bitwise equal); None when a parent, constraint, animation or rigid body may
+    change it."""
+    if obj.parent is not None or len(obj.constraints) > 0 or _animated(obj) \
+            or getattr(obj, "rigid_body", None) is not None:
+        return None
+    return np.array(obj.matrix_basis, dtype=np.float64)

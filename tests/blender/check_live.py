@@ -10,7 +10,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
 import smooth_ffd  # noqa: E402
-from smooth_ffd import compat, engine, meshio  # noqa: E402
+from smooth_ffd import compat, engine, latticeio, meshio  # noqa: E402
 
 TOL = 1e-5
 
@@ -68,6 +68,135 @@ def test_lattice_edits():
     T.update()
     parity("change strength", obj, lat, ref, mod)
     T.check("source mesh untouched by updates", source_digest(obj) == before)
+
+
+def _computations(fn):
+    """Runs fn (an edit + update); returns how many results were computed, and where (an
+    early computation that failed is a failure of its own)."""
+    before = dict(engine.counters)
+    fn()
+    n = {k: engine.counters[k] - before[k] for k in before}
+    errors = n.pop("early_errors")
+    if errors:
+        T.check("no failed early computation", False, f"{errors} failed")
+    return n
+
+
+def test_update_path():
+    """The live update path: plan and topology cached across lattice moves, one computation
+    per edit, written before Blender evaluates the edit (depsgraph_update_pre) when the
+    original data give the evaluated inputs, and parity however the result was reached."""
+    import bmesh
+    obj, lat, ref, mod = scene("cube")
+    p = lat.data.points[4]
+
+    def move(dz=0.2, point=None):
+        def fn():
+            (point or p).co_deform.z += dz
+            T.update()
+        return fn
+
+    plan = engine._state(obj, mod).deformer
+    n = _computations(move())
+    parity("lattice move: parity", obj, lat, ref, mod)
+    T.check("lattice move: one computation, before the evaluation",
+            n == {"computed": 1, "early": 1, "post": 0}, str(n))
+    T.check("lattice move: plan kept", engine._state(obj, mod).deformer is plan)
+    n = _computations(T.update)
+    T.check("no edit: no computation", n["computed"] == 0, str(n))
+    # Object transform: its world matrix is its own loc/rot/scale, known before evaluation.
+    def transform():
+        for o in (obj, ref):
+            o.location.x += 0.1
+            o.rotation_euler.z += 0.2
+        T.update()
+    n = _computations(transform)
+    parity("object transform: parity", obj, lat, ref, mod)
+    T.check("object transform: computed before the evaluation", n["early"] == 1 and n["post"] == 0,
+            str(n))
+    # Topology edit of the source (cut one face in two), then lattice moves on the new plan.
+    bm = bmesh.new()
+    bm.from_mesh(obj.data)
+    bm.faces.ensure_lookup_table()
+    f = bm.faces[0]
+    bmesh.utils.face_split(f, f.verts[0], f.verts[2])
+    bm.to_mesh(obj.data)
+    bm.free()
+    obj.data.update()
+    n = _computations(T.update)
+    parity("topology edit: parity", obj, lat, ref, mod)
+    T.check("topology edit: new plan, computed once", n["computed"] == 1
+            and engine._state(obj, mod).deformer is not plan, str(n))
+    for i in range(3):
+        n = _computations(move(0.15 if i % 2 == 0 else -0.1, lat.data.points[10 + i]))
+        parity(f"lattice move {i + 1} after topology edit: parity", obj, lat, ref, mod)
+        T.check(f"lattice move {i + 1} after topology edit: one early computation",
+                n == {"computed": 1, "early": 1, "post": 0}, str(n))
+    # Source edit and lattice move in one update: the early result used the old source, so
+    # the post handler must notice the source changed and recompute.
+    def both():
+        obj.data.vertices[2].co.x += 0.2
+        obj.data.update()
+        p.co_deform.x -= 0.1
+        T.update()
+    n = _computations(both)
+    parity("source edit + lattice move together: parity", obj, lat, ref, mod)
+    # Lattice resolution change: new structure, new plan.
+    lat.data.points_u = 4
+    n = _computations(T.update)
+    parity("lattice resized: parity", obj, lat, ref, mod)
+    n = _computations(move(0.1, lat.data.points[7]))
+    parity("resized lattice moved: parity", obj, lat, ref, mod)
+    T.check("resized lattice moved: one computation", n["computed"] == 1, str(n))
+    # An early computation that fails (here: an injected error) leaves the edit to the post
+    # handler, once; later updates without edits compute nothing.
+    read_lattice = latticeio.read_lattice
+    def broken(lat_obj, depsgraph):
+        if depsgraph is None:
+            raise RuntimeError("injected")
+        return read_lattice(lat_obj, depsgraph)
+    latticeio.read_lattice = broken
+    try:
+        before = dict(engine.counters)
+        move(0.05, lat.data.points[3])()
+        T.update()
+        n = {k: engine.counters[k] - before[k] for k in before}
+    finally:
+        latticeio.read_lattice = read_lattice
+    parity("failed early computation: parity", obj, lat, ref, mod)
+    T.check("failed early computation: computed after the evaluation, once",
+            n == {"computed": 1, "early": 0, "post": 1, "early_errors": 1}, str(n))
+    # Lattice in edit mode (how points are moved interactively): still computed early.
+    bpy.context.view_layer.objects.active = lat
+    bpy.ops.object.mode_set(mode='EDIT')
+    def edit_move():
+        lat.data.points[7].co_deform.x += 0.1
+        lat.data.update_tag()
+        T.update()
+    n = _computations(edit_move)
+    parity("lattice in edit mode moved: parity", obj, lat, ref, mod)
+    T.check("lattice in edit mode moved: one early computation",
+            n == {"computed": 1, "early": 1, "post": 0}, str(n))
+    bpy.ops.object.mode_set(mode='OBJECT')
+    T.update()
+    parity("lattice edit mode left: parity", obj, lat, ref, mod)
+    # Hooked lattice: the evaluated points differ from the original ones, so the pre
+    # handler must leave it to the post handler.
+    empty = T.link(bpy.data.objects.new("hook", None))
+    hook = lat.modifiers.new("Hook", 'HOOK')
+    hook.object = empty
+    hook.vertex_indices_set([0, 1])
+    T.update()
+    def hook_move():
+        empty.location.z += 0.3
+        T.update()
+    n = _computations(hook_move)
+    parity("hook moved: parity", obj, lat, ref, mod)
+    T.check("hook moved: computed after the evaluation only", n == {"computed": 1, "early": 0,
+                                                                   "post": 1}, str(n))
+    n = _computations(move(0.1, lat.data.points[20]))
+    parity("hooked lattice point moved: parity", obj, lat, ref, mod)
+    T.check("hooked lattice point moved: computed once", n["computed"] == 1, str(n))
 
 
 def test_levels():
@@ -327,7 +456,7 @@ def source_digest_mesh(me):
 
 def main():
     T.setup()
-    for fn in (test_lattice_edits, test_levels, test_frames_and_shape_keys, test_uvs_materials, test_hook, test_edit_modes,
+    for fn in (test_lattice_edits, test_update_path, test_levels, test_frames_and_shape_keys, test_uvs_materials, test_hook, test_edit_modes,
                test_errors, test_undo, test_duplicate, test_save_reload, test_apply_remove):
         T.run(fn.__name__, fn)
     T.finish()

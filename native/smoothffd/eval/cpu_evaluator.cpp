@@ -3,12 +3,14 @@
 #include <chrono>
 
 #include "smoothffd/core/parallel.hpp"
+#include "smoothffd/eval/cpu_sampling.hpp"
 #include "smoothffd/eval/stages.hpp"
 
 namespace sffd {
 
 CpuEvaluator::CpuEvaluator(std::shared_ptr<const Plan> plan, int threads)
-    : plan_(std::move(plan)), threads_(threads > 0 ? threads : default_threads()) {
+    : plan_(std::move(plan)), threads_(threads > 0 ? threads : default_threads()),
+      batches_(make_sample_batches(*plan_)) {
   const Plan& p = *plan_;
   sample_value_.resize(3 * (size_t)p.samples);
   sample_jacobian_.resize(9 * (size_t)p.samples);
@@ -29,9 +31,8 @@ StageTimes CpuEvaluator::evaluate(const float* D, float* positions, float* corne
     times.emplace_back(name, std::chrono::duration<double, std::milli>(t1 - t0).count());
     t0 = t1;
   };
-  parallel_for(pv.samples, threads_, [&](long long b, long long e) {
-    for (long long s = b; s < e; ++s)
-      sample_point(pv, D, (int)s, fv.sample_value + 3 * s, fv.sample_jacobian + 9 * s);
+  parallel_for(batches_.count(), threads_, [&](long long b, long long e) {
+    for (long long i = b; i < e; ++i) sample_batch(pv, D, batches_, i, fv.sample_value, fv.sample_jacobian);
   });
   lap("sampling");
   parallel_for(pv.edges, threads_, [&](long long b, long long e) {

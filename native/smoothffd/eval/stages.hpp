@@ -19,21 +19,22 @@ namespace sffd {
 // memory). Terms beyond a piece's count get weight 0: its coefficients are 0 there, and the
 // evaluators only use C >= every count of the plan. Returns the largest count of the three.
 // `pieces` replaces pv.pieces when given (the CUDA kernels pass a copy in shared memory).
-template <int C>
-SFFD_HD int sample_weights(const PlanView& pv, const float p[3], uint32_t packed, int idx[3][C],
-                           float w[3][C], float dw[3][C], const AxisPieceF* pieces = nullptr) {
+// T = float, or Lanes (eval/lanes.hpp) for several samples of one lattice box at once.
+template <int C, class T = float>
+SFFD_HD int sample_weights(const PlanView& pv, const T p[3], uint32_t packed, int idx[3][C],
+                           T w[3][C], T dw[3][C], const AxisPieceF* pieces = nullptr) {
   const AxisPieceF* pcs = pieces ? pieces : pv.pieces;
   int count = 0;
 SFFD_UNROLL
   for (int a = 0; a < 3; ++a) {
     const AxisPieceF& pc = pcs[pv.axis_offset[a] + ((packed >> (10 * a)) & 1023u)];
     const float* m = pv.param_map + 4 * a;
-    float t = ((m[0] * p[0] + m[1] * p[1] + m[2] * p[2] + m[3]) - pc.origin) * pc.inv_scale;
+    T t = ((m[0] * p[0] + m[1] * p[1] + m[2] * p[2] + m[3]) - pc.origin) * pc.inv_scale;
     if (pc.degree == 0) t = 0.0f;
     count = pc.count > count ? pc.count : count;
 SFFD_UNROLL
     for (int k = 0; k < C; ++k) {
-      float v = 0.0f, d = 0.0f;
+      T v = 0.0f, d = 0.0f;
 SFFD_UNROLL
       for (int q = C - 1; q >= 0; --q) {
         if (q > pc.degree) continue;

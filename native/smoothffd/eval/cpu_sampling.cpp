@@ -1,0 +1,108 @@
+#include "smoothffd/eval/cpu_sampling.hpp"
+
+#include <algorithm>
+#include <numeric>
+
+#include "smoothffd/eval/lanes.hpp"
+#include "smoothffd/eval/stages.hpp"
+
+namespace sffd {
+
+namespace {
+
+// Terms an axis the contraction of a box runs with: sample_point's dispatch on the largest
+// count (tensor_eval), raised where a piece's polynomial has more powers than terms, since
+// sample_weights<C> evaluates powers below C only.
+int box_terms(const Plan& plan, uint32_t packed) {
+  int need = 1;
+  for (int a = 0; a < 3; ++a) {
+    const AxisPieceF& pc = plan.pieces[plan.axis_offset[a] + ((packed >> (10 * a)) & 1023u)];
+    need = std::max({need, pc.count, pc.degree + 1});
+  }
+  return need <= 4 ? need : kMaxTerms;
+}
+
+// kJacobian = false leaves J unused, and the compiler drops its sums (all locals, unrolled).
+template <int C, bool kJacobian>
+void sample_lanes(const PlanView& pv, const float* D, const int* ids, int n, float* value,
+                  float* jacobian) {
+  Lanes p[3], weight;
+  for (int l = 0; l < kLanes; ++l) {
+    int s = ids[l < n ? l : n - 1];  // a short batch repeats its last sample
+    for (int a = 0; a < 3; ++a) p[a].set(l, pv.sample_position[3 * (long long)s + a]);
+    weight.set(l, pv.sample_weight[s]);
+  }
+  int idx[3][C];
+  Lanes w[3][C], dw[3][C], val[3], grad[9], A[9], F[3], J[9];
+  sample_weights<C, Lanes>(pv, p, pv.sample_piece[ids[0]], idx, w, dw);
+  tensor_eval_fixed<Lanes, float, C, C, C>(idx[0], w[0], dw[0], idx[1], w[1], dw[1], idx[2], w[2],
+                                           dw[2], D, pv.dims[1], pv.dims[2], val, grad);
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) A[3 * r + c] = pv.param_map[4 * r + c];
+  compose_deformation<Lanes>(p, weight, val, grad, A, F, J);
+  for (int l = 0; l < n; ++l) {
+    long long s = ids[l];
+    for (int r = 0; r < 3; ++r) value[3 * s + r] = F[r][l];
+    if (kJacobian)
+      for (int r = 0; r < 9; ++r) jacobian[9 * s + r] = J[r][l];
+  }
+}
+
+template <bool kJacobian>
+void sample_box(int terms, const PlanView& pv, const float* D, const int* ids, int n,
+                float* value, float* jacobian) {
+  switch (terms) {
+    case 1: return sample_lanes<1, kJacobian>(pv, D, ids, n, value, jacobian);
+    case 2: return sample_lanes<2, kJacobian>(pv, D, ids, n, value, jacobian);
+    case 3: return sample_lanes<3, kJacobian>(pv, D, ids, n, value, jacobian);
+    case 4: return sample_lanes<4, kJacobian>(pv, D, ids, n, value, jacobian);
+    default: return sample_lanes<kMaxTerms, kJacobian>(pv, D, ids, n, value, jacobian);
+  }
+}
+
+}  // namespace
+
+SampleBatches make_sample_batches(const Plan& plan) {
+  const int S = plan.samples;
+  SampleBatches sb;
+  sb.order.resize(S);
+  // Dense box id from the three piece numbers; a counting sort keeps plan order in a box.
+  int n[3];
+  for (int a = 0; a < 3; ++a)
+    n[a] = (a < 2 ? plan.axis_offset[a + 1] : (int)plan.pieces.size()) - plan.axis_offset[a];
+  auto box = [&](uint32_t k) {
+    return ((long long)((k >> 20) & 1023u) * n[1] + ((k >> 10) & 1023u)) * n[0] + (k & 1023u);
+  };
+  const long long boxes = (long long)n[0] * n[1] * n[2];
+  if (boxes <= 4LL * S + 1024) {
+    std::vector<int> first(boxes + 1, 0);
+    for (int s = 0; s < S; ++s) ++first[box(plan.sample_piece[s]) + 1];
+    std::partial_sum(first.begin(), first.end(), first.begin());
+    for (int s = 0; s < S; ++s) sb.order[first[box(plan.sample_piece[s])]++] = s;
+  } else {  // very fine lattices: more boxes than samples
+    std::iota(sb.order.begin(), sb.order.end(), 0);
+    std::stable_sort(sb.order.begin(), sb.order.end(), [&](int x, int y) {
+      return box(plan.sample_piece[x]) < box(plan.sample_piece[y]);
+    });
+  }
+  for (int i = 0; i < S;) {
+    const uint32_t key = plan.sample_piece[sb.order[i]];
+    int j = i;
+    while (j < S && j - i < kLanes && plan.sample_piece[sb.order[j]] == key) ++j;
+    sb.start.push_back(i);
+    sb.terms.push_back((uint8_t)box_terms(plan, key));
+    i = j;
+  }
+  sb.start.push_back(S);
+  return sb;
+}
+
+void sample_batch(const PlanView& pv, const float* D, const SampleBatches& sb, long long b,
+                  float* value, float* jacobian) {
+  const int* ids = sb.order.data() + sb.start[b];
+  const int n = sb.start[b + 1] - sb.start[b];
+  if (jacobian) return sample_box<true>(sb.terms[b], pv, D, ids, n, value, jacobian);
+  return sample_box<false>(sb.terms[b], pv, D, ids, n, value, nullptr);
+}
+
+}  // namespace sffd

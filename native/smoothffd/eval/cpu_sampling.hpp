@@ -1,0 +1,32 @@
+// Stage 1 (sampling, sec. 5.1) on the CPU, kLanes samples at a time.
+//
+// Samples in the same lattice box (the same three axis pieces, Plan::sample_piece) weigh the
+// same control values with the same polynomials. So kLanes of them run sample_point's
+// arithmetic (sample_weights, tensor_eval_fixed, compose_deformation: the same templates) as
+// vector operations, each control value loaded once and broadcast to every lane: one
+// instruction does the work of kLanes scalar ones. The batches depend on the plan only and
+// are built once, next to it (a counting sort by box; plan order within a box).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "smoothffd/eval/plan_view.hpp"
+
+namespace sffd {
+
+struct SampleBatches {
+  std::vector<int> order;      // sample ids grouped by box
+  std::vector<int> start;      // batch b is order[start[b] .. start[b + 1]): one box, <= kLanes
+  std::vector<uint8_t> terms;  // per batch: terms an axis the contraction runs with (1-4, 6)
+  long long count() const { return (long long)terms.size(); }
+};
+
+SampleBatches make_sample_batches(const Plan& plan);
+
+// F (3 floats) and J (9 floats) of every sample of batch b into value + 3 s, jacobian + 9 s.
+// jacobian == nullptr: values only (the derivative sums are skipped).
+void sample_batch(const PlanView& pv, const float* D, const SampleBatches& sb, long long b,
+                  float* value, float* jacobian);
+
+}  // namespace sffd

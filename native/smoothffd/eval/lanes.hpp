@@ -1,0 +1,41 @@
+// Lanes: kLanes floats computed together (one AVX register with -march=x86-64-v3 or newer, two
+// SSE registers without). Arithmetic is element-wise, a float operand is broadcast, so the
+// scalar templates of the stages (tensor_eval_fixed, compose_deformation, sample_weights) run
+// unchanged on kLanes samples at once: `T x = 0.0f`, `x * w + (T)d` all mean what they mean for
+// float. Host only (the CUDA evaluator gets its parallelism from threads).
+#pragma once
+
+namespace sffd {
+
+constexpr int kLanes = 8;
+
+#if defined(__GNUC__) || defined(__clang__)
+struct Lanes {
+  typedef float V __attribute__((vector_size(4 * kLanes)));
+  V v;
+  Lanes() = default;
+  Lanes(float x) : v(V{} + x) {}  // NOLINT: implicit broadcast, as for a float operand
+  explicit Lanes(V x) : v(x) {}
+  float operator[](int i) const { return v[i]; }
+  void set(int i, float x) { v[i] = x; }
+  friend Lanes operator+(Lanes a, Lanes b) { return Lanes(a.v + b.v); }
+  friend Lanes operator-(Lanes a, Lanes b) { return Lanes(a.v - b.v); }
+  friend Lanes operator*(Lanes a, Lanes b) { return Lanes(a.v * b.v); }
+  Lanes& operator+=(Lanes b) { v += b.v; return *this; }
+};
+#else
+// Portable fallback: the same operations as plain loops (compilers vectorize most of them).
+struct Lanes {
+  float v[kLanes];
+  Lanes() = default;
+  Lanes(float x) { for (int i = 0; i < kLanes; ++i) v[i] = x; }  // NOLINT
+  float operator[](int i) const { return v[i]; }
+  void set(int i, float x) { v[i] = x; }
+  friend Lanes operator+(Lanes a, Lanes b) { for (int i = 0; i < kLanes; ++i) a.v[i] += b.v[i]; return a; }
+  friend Lanes operator-(Lanes a, Lanes b) { for (int i = 0; i < kLanes; ++i) a.v[i] -= b.v[i]; return a; }
+  friend Lanes operator*(Lanes a, Lanes b) { for (int i = 0; i < kLanes; ++i) a.v[i] *= b.v[i]; return a; }
+  Lanes& operator+=(Lanes b) { for (int i = 0; i < kLanes; ++i) v[i] += b.v[i]; return *this; }
+};
+#endif
+
+}  // namespace sffd

@@ -3,6 +3,7 @@
 #include <chrono>
 
 #include "smoothffd/core/parallel.hpp"
+#include "smoothffd/eval/cpu_fitting.hpp"
 #include "smoothffd/eval/cpu_sampling.hpp"
 #include "smoothffd/eval/stages.hpp"
 
@@ -10,7 +11,8 @@ namespace sffd {
 
 CpuEvaluator::CpuEvaluator(std::shared_ptr<const Plan> plan, int threads)
     : plan_(std::move(plan)), threads_(threads > 0 ? threads : default_threads()),
-      batches_(make_sample_batches(*plan_)) {
+      batches_(make_sample_batches(*plan_)),
+      fit_columns_(make_fit_columns(*plan_)) {
   const Plan& p = *plan_;
   sample_value_.resize(3 * (size_t)p.samples);
   sample_jacobian_.resize(9 * (size_t)p.samples);
@@ -40,7 +42,8 @@ StageTimes CpuEvaluator::evaluate(const float* D, float* positions, float* corne
   });
   lap("edge_adjustment");
   parallel_for(pv.patches, threads_, [&](long long b, long long e) {
-    for (long long p = b; p < e; ++p) fit_patch(pv, fv, (int)p);
+    for (long long p = b; p < e; ++p)
+      fit_patch_lanes(pv, fv, fit_columns_, (int)p, fv.patch_control + 30 * p, fv.patch_normal + 30 * p);
   });
   lap("fitting");
   parallel_for(pv.output_vertices, threads_, [&](long long b, long long e) {

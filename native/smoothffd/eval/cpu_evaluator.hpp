@@ -2,6 +2,7 @@
 #pragma once
 
 #include "smoothffd/eval/evaluator.hpp"
+#include "smoothffd/eval/cpu_fitting.hpp"
 #include "smoothffd/eval/cpu_sampling.hpp"
 
 namespace sffd {
@@ -18,6 +19,7 @@ class CpuEvaluator : public Evaluator {
   std::shared_ptr<const Plan> plan_;
   int threads_;
   SampleBatches batches_;  // sampling: samples grouped by lattice box, kLanes at a time
+  FitColumns fit_columns_; // fitting: the centre row's columns, kLanes at a time
   std::vector<float> sample_value_, sample_jacobian_, edge_control_, patch_control_, patch_normal_;
 };
 

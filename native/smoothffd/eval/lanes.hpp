@@ -5,6 +5,11 @@
 // float. Host only (the CUDA evaluator gets its parallelism from threads).
 #pragma once
 
+#include <cmath>
+#if defined(__AVX__)
+#include <immintrin.h>
+#endif
+
 namespace sffd {
 
 constexpr int kLanes = 8;
@@ -21,6 +26,7 @@ struct Lanes {
   friend Lanes operator+(Lanes a, Lanes b) { return Lanes(a.v + b.v); }
   friend Lanes operator-(Lanes a, Lanes b) { return Lanes(a.v - b.v); }
   friend Lanes operator*(Lanes a, Lanes b) { return Lanes(a.v * b.v); }
+  friend Lanes operator/(Lanes a, Lanes b) { return Lanes(a.v / b.v); }
   Lanes& operator+=(Lanes b) { v += b.v; return *this; }
 };
 #else
@@ -34,8 +40,27 @@ struct Lanes {
   friend Lanes operator+(Lanes a, Lanes b) { for (int i = 0; i < kLanes; ++i) a.v[i] += b.v[i]; return a; }
   friend Lanes operator-(Lanes a, Lanes b) { for (int i = 0; i < kLanes; ++i) a.v[i] -= b.v[i]; return a; }
   friend Lanes operator*(Lanes a, Lanes b) { for (int i = 0; i < kLanes; ++i) a.v[i] *= b.v[i]; return a; }
+  friend Lanes operator/(Lanes a, Lanes b) { for (int i = 0; i < kLanes; ++i) a.v[i] /= b.v[i]; return a; }
   Lanes& operator+=(Lanes b) { for (int i = 0; i < kLanes; ++i) v[i] += b.v[i]; return *this; }
 };
 #endif
+
+// Element-wise square root (correctly rounded, as sqrtf).
+inline Lanes sqrt(Lanes a) {
+#if defined(__AVX__) && (defined(__GNUC__) || defined(__clang__))
+  static_assert(kLanes == 8, "one AVX register");
+  return Lanes((Lanes::V)_mm256_sqrt_ps((__m256)a.v));
+#else
+  for (int i = 0; i < kLanes; ++i) a.set(i, std::sqrt(a[i]));
+  return a;
+#endif
+}
+
+// Sum of the lanes, in lane order.
+inline float sum(Lanes a) {
+  float s = a[0];
+  for (int i = 1; i < kLanes; ++i) s += a[i];
+  return s;
+}
 
 }  // namespace sffd

@@ -1,0 +1,119 @@
+#include "smoothffd/eval/cpu_fitting.hpp"
+
+#include "smoothffd/eval/lanes.hpp"
+#include "smoothffd/eval/stages.hpp"
+
+namespace sffd {
+
+FitColumns make_fit_columns(const Plan& plan) {
+  FitColumns fc;
+  const int K = plan.columns;
+  fc.centre = K - 9;
+  fc.padded = (fc.centre + kLanes - 1) / kLanes * kLanes;
+  fc.bary.assign(3 * (size_t)fc.padded, 0.0f);
+  fc.weight.assign(fc.padded, 0.0f);
+  for (int k = 0; k < fc.padded; ++k) {
+    for (int i = 0; i < 3; ++i)
+      fc.bary[(size_t)i * fc.padded + k] = k < fc.centre ? plan.column_bary[3 * k + i] : (i == 0);
+    if (k < fc.centre) fc.weight[k] = plan.fit_matrix[(size_t)kCentre * K + k];
+  }
+  return fc;
+}
+
+namespace {
+
+// cofactor_apply (core/hd.hpp) on lanes: n' = n.x (J2 x J3) + n.y (J3 x J1) + n.z (J1 x J2),
+// Jc the columns of the row-major J.
+void cofactor_apply_lanes(const Lanes J[9], const Lanes n[3], Lanes out[3]) {
+  const Lanes *c1[3] = {&J[0], &J[3], &J[6]}, *c2[3] = {&J[1], &J[4], &J[7]}, *c3[3] = {&J[2], &J[5], &J[8]};
+  auto cross = [](const Lanes* const a[3], const Lanes* const b[3], int r) {
+    int i = (r + 1) % 3, j = (r + 2) % 3;
+    return *a[i] * *b[j] - *a[j] * *b[i];
+  };
+  for (int r = 0; r < 3; ++r) out[r] = n[0] * cross(c2, c3, r) + n[1] * cross(c3, c1, r) + n[2] * cross(c1, c2, r);
+}
+
+template <bool kNormals>
+void fit_patch_impl(const PlanView& pv, const FrameView& fv, const FitColumns& fc, int p,
+                    float* out_g, float* out_n) {
+  const int K = pv.columns;
+  const int* ps = pv.patch_samples + (long long)p * K;
+  V3 rn[3];
+  for (int k = 0; k < 3; ++k) rn[k] = load3(pv.patch_render_normal + 9 * (long long)p + 3 * k);
+  Lanes gc[3] = {0.0f, 0.0f, 0.0f}, nc[3] = {0.0f, 0.0f, 0.0f};
+  for (int k0 = 0; k0 < fc.padded; k0 += kLanes) {
+    Lanes x[3], J[9];
+    for (int l = 0; l < kLanes; ++l) {
+      if (k0 + l < fc.centre) {
+        const long long s = ps[k0 + l];
+        for (int r = 0; r < 3; ++r) x[r].set(l, fv.sample_value[3 * s + r]);
+        if (kNormals)
+          for (int r = 0; r < 9; ++r) J[r].set(l, fv.sample_jacobian[9 * s + r]);
+      } else {  // padding: weight 0, finite values, identity Jacobian
+        for (int r = 0; r < 3; ++r) x[r].set(l, 0.0f);
+        if (kNormals)
+          for (int r = 0; r < 9; ++r) J[r].set(l, r % 4 == 0 ? 1.0f : 0.0f);
+      }
+    }
+    Lanes m;
+    for (int l = 0; l < kLanes; ++l) m.set(l, fc.weight[k0 + l]);
+    for (int r = 0; r < 3; ++r) gc[r] += m * x[r];
+    if (!kNormals) continue;
+    // deformed_column_normal on lanes: interpolated rest normal, cofactor, two normalizations.
+    Lanes b[3], n0[3], c[3], n[3];
+    for (int i = 0; i < 3; ++i)
+      for (int l = 0; l < kLanes; ++l) b[i].set(l, fc.bary[(size_t)i * fc.padded + k0 + l]);
+    n0[0] = b[0] * rn[0].x + b[1] * rn[1].x + b[2] * rn[2].x;
+    n0[1] = b[0] * rn[0].y + b[1] * rn[1].y + b[2] * rn[2].y;
+    n0[2] = b[0] * rn[0].z + b[1] * rn[1].z + b[2] * rn[2].z;
+    cofactor_apply_lanes(J, n0, c);
+    Lanes l2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
+    Lanes inv = Lanes(1.0f) / sqrt(l2);
+    for (int r = 0; r < 3; ++r) n[r] = inv * c[r];
+    Lanes l2b = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+    Lanes inv2 = Lanes(1.0f) / sqrt(l2b);
+    for (int r = 0; r < 3; ++r) n[r] = inv2 * n[r];
+    // Lanes outside normalized_or's plain range (a degenerate or huge cofactor) redo the
+    // shared scalar code, fallbacks included.
+    for (int l = 0; l < kLanes && k0 + l < fc.centre; ++l) {
+      if (l2[l] > 1e-30f && l2[l] <= 3.0e38f && l2b[l] > 1e-30f && l2b[l] <= 3.0e38f) continue;
+      V3 v = deformed_column_normal(pv, k0 + l, rn, fv.sample_jacobian + 9 * (long long)ps[k0 + l]);
+      n[0].set(l, v.x);
+      n[1].set(l, v.y);
+      n[2].set(l, v.z);
+    }
+    for (int r = 0; r < 3; ++r) nc[r] += m * n[r];
+  }
+  V3 g[10], nn[10];
+  for (int r = 0; r < 10; ++r) g[r] = nn[r] = v3(0, 0, 0);
+  g[kCentre] = v3(sum(gc[0]), sum(gc[1]), sum(gc[2]));
+  nn[kCentre] = v3(sum(nc[0]), sum(nc[1]), sum(nc[2]));
+  // The 9 constraint columns feed every row (as in fit_patch_into).
+  for (int k = fc.centre; k < K; ++k) {
+    const long long s = ps[k];
+    V3 x = load3(fv.sample_value + 3 * s), n = v3(0, 0, 0);
+    if (kNormals) n = deformed_column_normal(pv, k, rn, fv.sample_jacobian + 9 * s);
+    for (int r = 0; r < 10; ++r) {
+      float m = pv.fit_matrix[r * K + k];
+      g[r] += m * x;
+      if (kNormals) nn[r] += m * n;
+    }
+  }
+  finish_patch(pv, fv, p, g);
+  for (int r = 0; r < 10; ++r) {
+    store3(out_g + 3 * r, g[r]);
+    if (kNormals) store3(out_n + 3 * r, nn[r]);
+  }
+}
+
+}  // namespace
+
+void fit_patch_lanes(const PlanView& pv, const FrameView& fv, const FitColumns& fc, int p,
+                     float* out_g, float* out_n) {
+  if (out_n)
+    fit_patch_impl<true>(pv, fv, fc, p, out_g, out_n);
+  else
+    fit_patch_impl<false>(pv, fv, fc, p, out_g, nullptr);
+}
+
+}  // namespace sffd

@@ -1,0 +1,120 @@
+// The CPU's vectorized stages against the scalar code of eval/stages.hpp, which the CUDA
+// evaluator runs one thread an element:
+// * batched sampling (eval/cpu_sampling.hpp: kLanes samples of one lattice box at a time) vs
+//   sample_point: same values and Jacobians up to float rounding, for every sample of random
+//   meshes in random lattices (every supported degree, both kinds, 1-point axes), and every
+//   sample written exactly once by the batches;
+// * the fit with the centre row on lanes (eval/cpu_fitting.hpp) vs fit_patch_into, including
+//   columns whose Jacobian is singular (the normalization fallbacks).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "smoothffd/eval/cpu_fitting.hpp"
+#include "smoothffd/eval/cpu_sampling.hpp"
+#include "smoothffd/eval/lanes.hpp"
+#include "smoothffd/eval/stages.hpp"
+#include "test_util.hpp"
+
+using namespace sffd;
+using namespace sffd_test;
+
+TEST(CpuSampling, BatchesMatchScalarSamplePoint) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> jitter(-0.2f, 0.2f);
+  int checked = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    LatticeSpec s = random_lattice(rng);
+    if (trial >= 34) s = bspline_box(trial % 2 ? 5 : 4, 7, -0.1, 1.1);  // the 6-term contraction
+    InputMesh m = random_mesh(rng);
+    PlanOptions opt;
+    opt.level = 2;
+    Plan plan;
+    try {
+      plan = build_plan(m, s, opt);
+    } catch (const std::invalid_argument&) {
+      continue;  // a degenerate random mesh: not this test's subject
+    }
+    std::vector<float> D = zero_values(s);
+    for (float& d : D) d = jitter(rng);
+    const PlanView pv = host_view(plan);
+    const SampleBatches sb = make_sample_batches(plan);
+    // Every sample in exactly one batch, every batch one box and at most kLanes samples.
+    std::vector<int> seen(plan.samples, 0);
+    for (long long b = 0; b < sb.count(); ++b) {
+      ASSERT_LE(sb.start[b + 1] - sb.start[b], kLanes);
+      ASSERT_GT(sb.start[b + 1] - sb.start[b], 0);
+      for (int i = sb.start[b]; i < sb.start[b + 1]; ++i) {
+        ++seen[sb.order[i]];
+        ASSERT_EQ(plan.sample_piece[sb.order[i]], plan.sample_piece[sb.order[sb.start[b]]]);
+      }
+    }
+    for (int c : seen) ASSERT_EQ(c, 1);
+
+    std::vector<float> F(3 * (size_t)plan.samples, NAN), J(9 * (size_t)plan.samples, NAN);
+    std::vector<float> Fv(3 * (size_t)plan.samples, NAN);
+    for (long long b = 0; b < sb.count(); ++b) {
+      sample_batch(pv, D.data(), sb, b, F.data(), J.data());
+      sample_batch(pv, D.data(), sb, b, Fv.data(), nullptr);
+    }
+    for (int i = 0; i < plan.samples; ++i) {
+      float f[3], j[9];
+      sample_point(pv, D.data(), i, f, j);
+      double scale = 1.0;
+      for (int r = 0; r < 3; ++r) scale = std::max(scale, (double)std::fabs(f[r]));
+      for (int r = 0; r < 3; ++r) {
+        ASSERT_NEAR(F[3 * i + r], f[r], 2e-6 * scale) << "sample " << i;
+        ASSERT_EQ(Fv[3 * i + r], F[3 * i + r]) << "values-only batch differs, sample " << i;
+      }
+      for (int r = 0; r < 9; ++r)
+        ASSERT_NEAR(J[9 * i + r], j[r], 2e-5 * std::max(1.0, (double)std::fabs(j[r]))) << "sample " << i;
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 1000);
+}
+
+TEST(CpuFitting, LanesMatchScalarFitPatch) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> jitter(-0.2f, 0.2f);
+  int checked = 0;
+  for (int trial = 0; trial < 30; ++trial) {
+    LatticeSpec s = trial < 25 ? random_lattice(rng) : bspline_box(trial % 2 ? 5 : 3, 7, -0.1, 1.1);
+    InputMesh m = random_mesh(rng);
+    PlanOptions opt;
+    opt.level = 2;
+    Plan plan;
+    try {
+      plan = build_plan(m, s, opt);
+    } catch (const std::invalid_argument&) {
+      continue;
+    }
+    std::vector<float> D = zero_values(s);
+    for (float& d : D) d = jitter(rng);
+    const PlanView pv = host_view(plan);
+    std::vector<float> value(3 * (size_t)plan.samples), jac(9 * (size_t)plan.samples);
+    std::vector<float> edge(6 * (size_t)plan.edges + 6);
+    for (int i = 0; i < plan.samples; ++i) sample_point(pv, D.data(), i, &value[3 * i], &jac[9 * i]);
+    // Singular Jacobians at every 5th sample past the corners: zero cofactor, fallback normals.
+    for (int i = plan.sub_vertices; i < plan.samples; i += 5)
+      for (int r = 0; r < 9; ++r) jac[9 * (size_t)i + r] = 0.0f;
+    FrameView fv{value.data(), jac.data(), edge.data(), nullptr, nullptr, nullptr, nullptr};
+    for (int e = 0; e < plan.edges; ++e) adjust_edge(pv, fv, e);
+    const FitColumns fc = make_fit_columns(plan);
+    for (int p = 0; p < plan.patches; ++p) {
+      float g0[30], n0[30], g1[30], n1[30], g2[30];
+      fit_patch_into(pv, fv, p, g0, n0);
+      fit_patch_lanes(pv, fv, fc, p, g1, n1);
+      fit_patch_lanes(pv, fv, fc, p, g2, nullptr);
+      for (int i = 0; i < 30; ++i) {
+        ASSERT_NEAR(g1[i], g0[i], 2e-5 * std::max(1.0f, std::fabs(g0[i]))) << "patch " << p;
+        ASSERT_NEAR(n1[i], n0[i], 2e-5 * std::max(1.0f, std::fabs(n0[i]))) << "patch " << p;
+        ASSERT_EQ(g2[i], g1[i]) << "geometry-only fit differs, patch " << p;
+      }
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 300);
+}

@@ -5,7 +5,9 @@
 //   meshes in random lattices (every supported degree, both kinds, 1-point axes), and every
 //   sample written exactly once by the batches;
 // * the fit with the centre row on lanes (eval/cpu_fitting.hpp) vs fit_patch_into, including
-//   columns whose Jacobian is singular (the normalization fallbacks).
+//   columns whose Jacobian is singular (the normalization fallbacks);
+// * the grid normals on lanes (eval/cpu_tessellation.hpp) vs tessellate_normal, including
+//   normal patches that vanish (the fallback).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -14,6 +16,7 @@
 
 #include "smoothffd/eval/cpu_fitting.hpp"
 #include "smoothffd/eval/cpu_sampling.hpp"
+#include "smoothffd/eval/cpu_tessellation.hpp"
 #include "smoothffd/eval/lanes.hpp"
 #include "smoothffd/eval/stages.hpp"
 #include "test_util.hpp"
@@ -117,4 +120,33 @@ TEST(CpuFitting, LanesMatchScalarFitPatch) {
     }
   }
   EXPECT_GT(checked, 300);
+}
+
+TEST(CpuTessellation, GridNormalsMatchScalarTessellateNormal) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> U(-1.0f, 1.0f);
+  InputMesh m = octahedron();
+  for (int level : {1, 2, 3, 7, 10}) {
+    PlanOptions opt;
+    opt.level = level;
+    Plan plan = build_plan(m, bspline_box(2, 4), opt);
+    const PlanView pv = host_view(plan);
+    std::vector<float> normal_patches(30 * (size_t)plan.patches);
+    for (float& x : normal_patches) x = U(rng);
+    // Patch 0: all zero (every grid normal falls back); patch 1: huge (l2 overflows).
+    for (int i = 0; i < 30; ++i) normal_patches[i] = 0.0f;
+    for (int i = 30; i < 60; ++i) normal_patches[i] *= 3e19f;
+    FrameView fv{nullptr, nullptr, nullptr, nullptr, normal_patches.data(), nullptr, nullptr};
+    const GridBasisLanes gb = make_grid_basis_lanes(plan);
+    std::vector<float> out(3 * (size_t)gb.padded);
+    for (int p = 0; p < plan.patches; ++p) {
+      patch_grid_normals(pv, fv, gb, p, out.data());
+      for (int g = 0; g < plan.grid; ++g) {
+        V3 ref = tessellate_normal(pv, fv, p, g);
+        ASSERT_NEAR(out[g], ref.x, 1e-6f) << "patch " << p << " grid " << g;
+        ASSERT_NEAR(out[gb.padded + g], ref.y, 1e-6f);
+        ASSERT_NEAR(out[2 * gb.padded + g], ref.z, 1e-6f);
+      }
+    }
+  }
 }

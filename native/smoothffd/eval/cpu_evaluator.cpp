@@ -5,6 +5,7 @@
 #include "smoothffd/core/parallel.hpp"
 #include "smoothffd/eval/cpu_fitting.hpp"
 #include "smoothffd/eval/cpu_sampling.hpp"
+#include "smoothffd/eval/cpu_tessellation.hpp"
 #include "smoothffd/eval/stages.hpp"
 
 namespace sffd {
@@ -12,7 +13,8 @@ namespace sffd {
 CpuEvaluator::CpuEvaluator(std::shared_ptr<const Plan> plan, int threads)
     : plan_(std::move(plan)), threads_(threads > 0 ? threads : default_threads()),
       batches_(make_sample_batches(*plan_)),
-      fit_columns_(make_fit_columns(*plan_)) {
+      fit_columns_(make_fit_columns(*plan_)),
+      grid_lanes_(make_grid_basis_lanes(*plan_)) {
   const Plan& p = *plan_;
   sample_value_.resize(3 * (size_t)p.samples);
   sample_jacobian_.resize(9 * (size_t)p.samples);
@@ -50,13 +52,19 @@ StageTimes CpuEvaluator::evaluate(const float* D, float* positions, float* corne
     for (long long o = b; o < e; ++o) tessellate_position(pv, fv, (int)o);
   });
   lap("tessellate_positions");
-  const int G = pv.grid, LL = pv.level * pv.level;
+  const int LL = pv.level * pv.level;
   parallel_for(pv.patches, threads_, [&](long long b, long long e) {
-    std::vector<V3> normals(G);
+    const int P = grid_lanes_.padded;
+    std::vector<float> normals(3 * (size_t)P);
     for (long long p = b; p < e; ++p) {
-      for (int g = 0; g < G; ++g) normals[g] = tessellate_normal(pv, fv, (int)p, g);
+      patch_grid_normals(pv, fv, grid_lanes_, (int)p, normals.data());
       float* out = corner_normals + 9 * p * LL;
-      for (int i = 0; i < 3 * LL; ++i) store3(out + 3 * i, normals[pv.local_triangles[i]]);
+      for (int i = 0; i < 3 * LL; ++i) {
+        const int g = pv.local_triangles[i];
+        out[3 * i] = normals[g];
+        out[3 * i + 1] = normals[P + g];
+        out[3 * i + 2] = normals[2 * P + g];
+      }
     }
   });
   lap("tessellate_normals");

@@ -4,6 +4,7 @@
 #include "smoothffd/eval/evaluator.hpp"
 #include "smoothffd/eval/cpu_fitting.hpp"
 #include "smoothffd/eval/cpu_sampling.hpp"
+#include "smoothffd/eval/cpu_tessellation.hpp"
 
 namespace sffd {
 
@@ -20,6 +21,7 @@ class CpuEvaluator : public Evaluator {
   int threads_;
   SampleBatches batches_;  // sampling: samples grouped by lattice box, kLanes at a time
   FitColumns fit_columns_; // fitting: the centre row's columns, kLanes at a time
+  GridBasisLanes grid_lanes_;  // normal tessellation: grid points kLanes at a time
   std::vector<float> sample_value_, sample_jacobian_, edge_control_, patch_control_, patch_normal_;
 };
 

@@ -71,4 +71,50 @@ StageTimes CpuEvaluator::evaluate(const float* D, float* positions, float* corne
   return times;
 }
 
+// evaluate() without the normal half, each stage with the variant its own home already has:
+// sample_batch with jacobian == null (values only) and fit_patch_lanes with out_n == null
+// (geometry only), both bitwise the full variant's values (test_cpu_lanes.cpp). Kept a
+// separate method: when evaluate's stages change, this one must follow, or
+// PositionsOnlyMatchesEvaluateBitwise (test_cpu_evaluator.cpp) fails.
+StageTimes CpuEvaluator::evaluate_positions(const float* D, float* positions) {
+  using Clock = std::chrono::steady_clock;
+  const PlanView pv = host_view(*plan_);
+  FrameView fv{sample_value_.data(), sample_jacobian_.data(), edge_control_.data(),
+               patch_control_.data(), nullptr, positions, nullptr};
+  StageTimes times;
+  auto t0 = Clock::now();
+  auto lap = [&](const char* name) {
+    auto t1 = Clock::now();
+    times.emplace_back(name, std::chrono::duration<double, std::milli>(t1 - t0).count());
+    t0 = t1;
+  };
+  // The geometry reads Jacobians at the edge ends only (adjust_edge), i.e. at the sub-vertex
+  // samples, numbered [0, sub_vertices) (plan.cpp). A batch holding one of them runs with
+  // Jacobians, every other batch values only. Batches keep plan order within a lattice box,
+  // so the sub-vertices fill batches of their own, and at most one batch a box is mixed.
+  const int corners = pv.sub_vertices;
+  parallel_for(batches_.count(), threads_, [&](long long b, long long e) {
+    for (long long i = b; i < e; ++i) {
+      bool jacobian = false;
+      for (int k = batches_.start[i]; k < batches_.start[i + 1]; ++k) jacobian |= batches_.order[k] < corners;
+      sample_batch(pv, D, batches_, i, fv.sample_value, jacobian ? fv.sample_jacobian : nullptr);
+    }
+  });
+  lap("sampling");
+  parallel_for(pv.edges, threads_, [&](long long b, long long e) {
+    for (long long i = b; i < e; ++i) adjust_edge(pv, fv, (int)i);
+  });
+  lap("edge_adjustment");
+  parallel_for(pv.patches, threads_, [&](long long b, long long e) {
+    for (long long p = b; p < e; ++p)
+      fit_patch_lanes(pv, fv, fit_columns_, (int)p, fv.patch_control + 30 * p, nullptr);
+  });
+  lap("fitting");
+  parallel_for(pv.output_vertices, threads_, [&](long long b, long long e) {
+    for (long long o = b; o < e; ++o) tessellate_position(pv, fv, (int)o);
+  });
+  lap("tessellate_positions");
+  return times;
+}
+
 }  // namespace sffd

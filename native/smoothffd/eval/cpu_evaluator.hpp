@@ -14,6 +14,11 @@ class CpuEvaluator : public Evaluator {
   std::string name() const override { return "cpu"; }
   const Plan& plan() const override { return *plan_; }
   StageTimes evaluate(const float* D, float* positions, float* corner_normals) override;
+  // Positions only (N x 3), bitwise the same as evaluate's, for callers that compute normals
+  // from the dense geometry themselves (the Blender add-on's viewport): Jacobians only where
+  // the edge adjustment reads them (the sub-vertex samples), geometry patches only, no normal
+  // tessellation. Stage names as evaluate's, without "tessellate_normals".
+  StageTimes evaluate_positions(const float* D, float* positions);
   int threads() const { return threads_; }
 
  private:

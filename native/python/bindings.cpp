@@ -63,11 +63,15 @@ py::array_t<float> output_array(const py::object& given, std::vector<py::ssize_t
   return a;
 }
 
+void check_values(const Plan& plan, const Arr<float>& D) {
+  if (D.ndim() != 2 || D.shape(1) != 3 || D.shape(0) != (py::ssize_t)plan.dims[0] * plan.dims[1] * plan.dims[2])
+    throw std::invalid_argument("control values: expected an (nu*nv*nw, 3) array matching the plan");
+}
+
 py::tuple run_evaluator(Evaluator& ev, const Arr<float>& D, const py::object& out_positions,
                         const py::object& out_normals) {
   const Plan& plan = ev.plan();
-  if (D.ndim() != 2 || D.shape(1) != 3 || D.shape(0) != (py::ssize_t)plan.dims[0] * plan.dims[1] * plan.dims[2])
-    throw std::invalid_argument("control values: expected an (nu*nv*nw, 3) array matching the plan");
+  check_values(plan, D);
   py::array_t<float> pos = output_array(out_positions, {(py::ssize_t)plan.output_vertices, 3}, "positions");
   py::array_t<float> nrm = output_array(out_normals, {(py::ssize_t)plan.output_triangles, 3, 3}, "corner_normals");
   const float* d = D.data();
@@ -79,6 +83,23 @@ py::tuple run_evaluator(Evaluator& ev, const Arr<float>& D, const py::object& ou
     t = ev.evaluate(d, p, n);
   }
   return py::make_tuple(pos, nrm, times_dict(t));
+}
+
+// Positions only: (positions, stage times). `eval(D, positions)` runs the backend's
+// positions-only frame; validation and out-buffer reuse as run_evaluator's.
+template <class Ev, class Fn>
+py::tuple run_positions(Ev& ev, const Arr<float>& D, const py::object& out_positions, Fn eval) {
+  const Plan& plan = ev.plan();
+  check_values(plan, D);
+  py::array_t<float> pos = output_array(out_positions, {(py::ssize_t)plan.output_vertices, 3}, "positions");
+  const float* d = D.data();
+  float* p = pos.mutable_data();
+  StageTimes t;
+  {
+    py::gil_scoped_release release;
+    t = eval(d, p);
+  }
+  return py::make_tuple(pos, times_dict(t));
 }
 
 }  // namespace
@@ -211,7 +232,16 @@ PYBIND11_MODULE(_core, m) {
            [](CpuEvaluator& ev, Arr<float> D, py::object positions, py::object corner_normals) {
              return run_evaluator(ev, D, positions, corner_normals);
            },
-           py::arg("values"), py::arg("positions") = py::none(), py::arg("corner_normals") = py::none());
+           py::arg("values"), py::arg("positions") = py::none(), py::arg("corner_normals") = py::none())
+      .def("evaluate_positions",
+           [](CpuEvaluator& ev, Arr<float> D, py::object positions) {
+             return run_positions(ev, D, positions, [&](const float* d, float* p) {
+               return ev.evaluate_positions(d, p);
+             });
+           },
+           py::arg("values"), py::arg("positions") = py::none(),
+           "(positions (N, 3), stage times): evaluate's positions, bitwise, without the normals "
+           "(Jacobians only at the sub-vertices, no normal patches)");
 
 #ifdef SMOOTHFFD_HAVE_CUDA
   m.attr("cuda_compiled") = true;
@@ -232,6 +262,15 @@ PYBIND11_MODULE(_core, m) {
              return run_evaluator(ev, D, positions, corner_normals);
            },
            py::arg("values"), py::arg("positions") = py::none(), py::arg("corner_normals") = py::none())
+      .def("evaluate_positions",
+           [](CudaEvaluator& ev, Arr<float> D, py::object positions) {
+             return run_positions(ev, D, positions, [&](const float* d, float* p) {
+               return ev.evaluate(d, p, nullptr);
+             });
+           },
+           py::arg("values"), py::arg("positions") = py::none(),
+           "(positions (N, 3), stage times): the whole frame on the device, positions copied "
+           "back, the normals' copy back and gather skipped")
       .def("evaluate_device",
            [](CudaEvaluator& ev, Arr<float> D) {
              const Plan& plan = ev.plan();

@@ -1133,7 +1133,8 @@ StageTimes CudaEvaluator::evaluate(const float* D, float* positions, float* corn
   float* hp = static_cast<float*>(m.h_out.ptr);
   float* hn = hp + 3 * N;
   CK(cudaMemcpyAsync(hp, m.fv.positions, 12 * N, cudaMemcpyDeviceToHost, m.stream));
-  CK(cudaMemcpyAsync(hn, m.normals, 12 * R, cudaMemcpyDeviceToHost, m.stream));
+  if (corner_normals)  // null: positions only (the device still computed the normals)
+    CK(cudaMemcpyAsync(hn, m.normals, 12 * R, cudaMemcpyDeviceToHost, m.stream));
   CK(cudaEventRecord(m.events.ev[e + 1], m.stream));
   CK(cudaEventSynchronize(m.events.ev[e + 1]));
   CK(cudaGetLastError());
@@ -1149,7 +1150,7 @@ StageTimes CudaEvaluator::evaluate(const float* D, float* positions, float* corn
   parallel_for((long long)(3 * N), threads, [&](long long b, long long en) {
     std::memcpy(positions + b, hp + b, 4 * (size_t)(en - b));
   });
-  parallel_for((long long)(3 * T), threads, [&](long long b, long long en) {
+  if (corner_normals) parallel_for((long long)(3 * T), threads, [&](long long b, long long en) {
     for (long long i = b; i < en; ++i) {
       const float* s = hn + 3 * (size_t)rt[i];
       float* d = corner_normals + 3 * i;

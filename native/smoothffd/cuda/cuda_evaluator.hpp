@@ -68,7 +68,9 @@ class CudaEvaluator : public Evaluator {
   const Plan& plan() const override { return *plan_; }
 
   // Whole frame: D up, device stages, compact copy back through pinned memory, per-corner
-  // normals gathered on the host (threads) into corner_normals.
+  // normals gathered on the host (threads) into corner_normals. corner_normals null:
+  // positions only (the device computes everything as usual; only the normals' copy back
+  // and host gather are skipped).
   StageTimes evaluate(const float* D, float* positions, float* corner_normals) override;
   // Device stages only; the result stays on the device. Times from CUDA events.
   StageTimes evaluate_device(const float* D);

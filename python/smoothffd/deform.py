@@ -26,7 +26,7 @@ class Result:
 
     positions: np.ndarray        # (N, 3) float32; [:V] are the deformed input vertices
     triangles: np.ndarray        # (T, 3) int32
-    corner_normals: np.ndarray   # (T, 3, 3) float32, unit
+    corner_normals: object       # (T, 3, 3) float32, unit; None from deform(normals=False)
     uvs: object                  # (T, 3, 2) float32 or None
     face_index: np.ndarray       # (T,) int32: input face of each output triangle
     rest_positions: np.ndarray   # (N, 3) float32: preimage on the flat input faces
@@ -153,7 +153,7 @@ class Deformer:
                     a.setflags(write=False)
         return self._static
 
-    def deform(self, lattice_or_points=None, out=None):
+    def deform(self, lattice_or_points=None, out=None, normals=True):
         """Deform with new control values.
 
         Pass a lattice (replanned automatically if its structure differs from the planned
@@ -162,12 +162,22 @@ class Deformer:
 
         out: a previous Result of this Deformer whose `positions` and `corner_normals` are
         overwritten in place and returned again (per-frame loops: no fresh 100+ MB arrays to
-        fault in). Ignored when the plan changed.
+        fault in). An array of `out` that is None or of another shape (the plan changed) is
+        allocated afresh instead.
+
+        normals: False computes the positions only and returns `corner_normals=None`, for
+        callers that shade the dense mesh from its own geometry (the Blender add-on's
+        viewport). The positions are bitwise the same as with normals=True; on the CPU the
+        normal half of the work (the Jacobians the edge adjustment does not need, the normal
+        patches, the normal tessellation) is skipped: well under half the time
+        (docs/benchmarks.md). On CUDA the device computes
+        everything as usual and only the normals' copy back is skipped. `out`'s normals are
+        left as they were.
         """
         with self._lock:
-            return self._deform(lattice_or_points, out)
+            return self._deform(lattice_or_points, out, bool(normals))
 
-    def _deform(self, lattice_or_points, out=None):
+    def _deform(self, lattice_or_points, out=None, normals=True):
         lat = lattice_or_points
         if lat is None:
             lat = self.lattice
@@ -187,16 +197,20 @@ class Deformer:
         if out is not None:
             if not isinstance(out, Result):
                 raise TypeError(f"out: expected a smoothffd.Result, got {type(out).__name__}")
-            if out.positions.shape == (self.plan.output_vertices, 3) and \
-                    out.corner_normals.shape == (self.plan.output_triangles, 3, 3):
-                bufs = dict(positions=out.positions, corner_normals=out.corner_normals)
+            # Each array separately: a positions-only Result has no normals to reuse.
+            shapes = dict(positions=(self.plan.output_vertices, 3),
+                          corner_normals=(self.plan.output_triangles, 3, 3))
+            for name, shape in shapes.items():
+                a = getattr(out, name)
+                if isinstance(a, np.ndarray) and a.shape == shape and (normals or name == "positions"):
+                    bufs[name] = a
         try:
-            positions, normals, stages = self._evaluator.evaluate(values, **bufs)
+            positions, corner_normals, stages = self._evaluate(values, bufs, normals)
         except (RuntimeError, MemoryError) as exc:
             if self.device != "cuda":
                 raise
             self._fall_back_to_cpu(exc)  # e.g. out of device memory for the copy back
-            positions, normals, stages = self._evaluator.evaluate(values, **bufs)
+            positions, corner_normals, stages = self._evaluate(values, bufs, normals)
         total = (time.perf_counter() - t0) * 1e3
         s = self._static_arrays()
         p = self.plan
@@ -206,11 +220,17 @@ class Deformer:
                      sub_vertices=p.sub_vertices, output_vertices=p.output_vertices,
                      output_triangles=p.output_triangles, fit_degree=p.fit_degree,
                      level=self.level)
-        return Result(positions=positions, triangles=s["triangles"], corner_normals=normals,
+        return Result(positions=positions, triangles=s["triangles"], corner_normals=corner_normals,
                       uvs=s["uvs"], face_index=s["face_index"],
                       rest_positions=s["rest_positions"], sharp_edges=s["sharp_edges"],
                       stats=stats)
 
+    def _evaluate(self, values, bufs, normals):
+        """(positions, corner_normals or None, stage times) from the evaluator."""
+        if normals:
+            return self._evaluator.evaluate(values, **bufs)
+        positions, stages = self._evaluator.evaluate_positions(values, **bufs)
+        return positions, None, stages
 
     def deform_on_device(self, lattice_or_points=None):
         """CUDA only: run the frame and keep the result in device memory (no copy back).
@@ -231,6 +251,6 @@ class Deformer:
             return dict(self._evaluator.evaluate_device(values))
 
 
-def deform(mesh, lattice, level=10, device="auto"):
+def deform(mesh, lattice, level=10, device="auto", normals=True):
     """One-shot smooth FFD of `mesh` by `lattice`; see `Deformer` and docs/api.md."""
-    return Deformer(mesh, lattice, level=level, device=device).deform()
+    return Deformer(mesh, lattice, level=level, device=device).deform(normals=normals)

@@ -545,6 +545,9 @@ def _write_polygon_rows(fh, stack, slot, offsets, chunk=500_000):
 
 
 def write_result(path, result, header=None):
-    """Write a ``smoothffd.Result`` (positions, triangles, corner normals, UVs) as OBJ."""
+    """Write a ``smoothffd.Result`` (positions, triangles, corner normals, UVs) as OBJ.
+
+    A positions-only result (``deform(..., normals=False)``, ``corner_normals`` None) is
+    written without ``vn`` lines, like a result without UVs has no ``vt``."""
     write_obj(path, result.positions, result.triangles, result.corner_normals, result.uvs,
               header=header)

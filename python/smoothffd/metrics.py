@@ -186,6 +186,9 @@ def reference_errors(result, lattice, closed=True):
     the output vertices) and ``volume_error`` (relative). The first V output vertices are the
     input vertices, so their geometry error should be ~float32 rounding.
     """
+    if getattr(result, "corner_normals", None) is None:
+        raise ValueError("result: has no corner_normals (deformed with normals=False); "
+                         "reference_errors compares normals too, deform with normals=True")
     ref_pos, ref_nrm = dense_reference(lattice, result.rest_positions, result.triangles)
     out = {"geometry": geometry_error(result.positions, ref_pos),
            "normal": normal_angle_error(result.corner_normals, ref_nrm)}

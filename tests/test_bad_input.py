@@ -63,6 +63,11 @@ def test_deformer_rejects_wrong_types_and_points():
         d.deform(np.zeros((3, 3, 3, 3)))
     with pytest.raises(ValueError, match="control_points"):
         d.deform(np.full((4, 4, 4, 3), np.nan))
+    # A rejected call leaves the Deformer's lattice as it was (points beyond the float32 range
+    # used to stay, and every later deform() raised).
+    with pytest.raises(ValueError, match="float32"):
+        d.deform(np.full((4, 4, 4, 3), 1e38))
+    assert np.array_equal(d.deform().positions, smoothffd.deform(m, LAT, level=2).positions)
 
 
 def test_degenerate_geometry_gives_no_nan():

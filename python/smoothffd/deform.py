@@ -188,10 +188,10 @@ class Deformer:
                 raise ValueError(f"control_points/points: expected shape {want} like the planned "
                                  f"lattice, got {shape}")
             lat = self.lattice.with_points(lat)
+        values = _control_values_f32(lat)   # before any state changes: a rejected call keeps them
         if lat.structure_key() != self._key:
             self._plan_for(lat)
         self.lattice = lat
-        values = _control_values_f32(lat)
         t0 = time.perf_counter()
         bufs = {}
         if out is not None:
@@ -244,10 +244,10 @@ class Deformer:
             lat = self.lattice if lattice_or_points is None else lattice_or_points
             if not isinstance(lat, _Lattice):
                 lat = self.lattice.with_points(lat)
+            values = _control_values_f32(lat)
             if lat.structure_key() != self._key:
                 self._plan_for(lat)
             self.lattice = lat
-            values = _control_values_f32(lat)
             return dict(self._evaluator.evaluate_device(values))
 
 

@@ -209,7 +209,11 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
                 st.deformer = core.make_deformer(source, lattice, level, backend)
             st.plan_key = plan_key
         # out=: overwrite the previous update's arrays in place (no fresh pages each edit).
-        res = st.result = st.deformer.deform(lattice, out=st.result)
+        # Without exact normals (3.4-4.0 viewport: Blender shades the dense mesh from its own
+        # geometry, _write_result) the core computes positions only: the same positions in
+        # well under half the time (res.corner_normals is None then).
+        res = st.result = st.deformer.deform(lattice, out=st.result, normals=exact)
+        deform_calls["normals" if exact else "positions_only"] += 1
         t1 = time.perf_counter()
         times = _write_result(obj, ro, res, source, logic.digest(plan_key), exact, st)
         normals = times.pop("normals")
@@ -241,6 +245,9 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
 
 # How many results were computed, and where (tests and benchmarks read these).
 counters = {"computed": 0, "early": 0, "post": 0, "early_errors": 0}
+# How the core was asked: with normals (exact normals: render, Apply, Exact Normals, 4.1+) or
+# positions only (viewport on 3.4-4.0). Apart from `counters`, whose exact contents tests compare.
+deform_calls = {"normals": 0, "positions_only": 0}
 
 
 def _level_backend_exact(settings, render):

@@ -199,6 +199,68 @@ def test_update_path():
     T.check("hooked lattice point moved: computed once", n["computed"] == 1, str(n))
 
 
+def test_positions_only_path():
+    """Viewport without exact normals (3.4-4.0: Blender shades the dense mesh from its
+    geometry) asks the core for positions only; exact normals (Exact Normals, render and
+    Apply, and 4.1+ always) ask for normals. Parity holds either way."""
+    obj, lat, ref, mod = scene("cube")
+    st = engine._state(obj, mod)
+    ro = engine.result_object(obj, mod, create=False)
+
+    def calls(fn):
+        before = dict(engine.deform_calls)
+        fn()
+        return {k: engine.deform_calls[k] - before[k] for k in before}
+
+    def move(dz=0.15):
+        def fn():
+            lat.data.points[4].co_deform.z += dz
+            T.update()
+        return fn
+
+    def exact_normals(on):
+        def fn():
+            compat.set_modifier_input(mod, "Exact Normals", on)
+            obj.update_tag()
+            T.update()
+        return fn
+
+    viewport = {"normals": 1, "positions_only": 0} if compat.HAS_CORNER_NORMALS else \
+        {"normals": 0, "positions_only": 1}
+    where = "4.1+ viewport (exact)" if compat.HAS_CORNER_NORMALS else "3.4-4.0 viewport"
+    n = calls(move())
+    parity(f"{where}: parity", obj, lat, ref, mod)
+    T.check(f"{where}: {'normals' if compat.HAS_CORNER_NORMALS else 'positions only'}",
+            n == viewport, str(n))
+    T.check(f"{where}: result normals {'kept' if compat.HAS_CORNER_NORMALS else 'None'}",
+            (st.result.corner_normals is not None) == compat.HAS_CORNER_NORMALS)
+    # 4.1+: exact already, the setting changes nothing (nothing recomputed).
+    none = {"normals": 0, "positions_only": 0}
+    n = calls(exact_normals(True))
+    parity("Exact Normals on: parity", obj, lat, ref, mod)
+    T.check("Exact Normals on: normals", n == (none if compat.HAS_CORNER_NORMALS else
+                                               {"normals": 1, "positions_only": 0}), str(n))
+    T.check("Exact Normals on: custom normals written", ro.data.has_custom_normals,
+            smooth_ffd.status(mod))
+    n = calls(move(-0.1))
+    parity("Exact Normals, lattice move: parity", obj, lat, ref, mod)
+    T.check("Exact Normals, lattice move: normals", n == {"normals": 1, "positions_only": 0},
+            str(n))
+    n = calls(exact_normals(False))
+    parity("Exact Normals off: parity", obj, lat, ref, mod)
+    T.check("Exact Normals off: back to the viewport path",
+            n == (none if compat.HAS_CORNER_NORMALS else viewport), str(n))
+    # Render (what the render handler and Apply call): normals, in every version.
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    n = calls(lambda: engine.update_modifier(obj, mod, depsgraph, render=True, force=True))
+    T.check("render update: normals", n == {"normals": 1, "positions_only": 0}, str(n))
+    T.check("render update: custom normals written", ro.data.has_custom_normals)
+    T.update()
+    n = calls(lambda: smooth_ffd.apply_smooth_ffd(obj, mod))
+    T.check("apply: normals", n["normals"] >= 1 and n["positions_only"] == 0, str(n))
+    T.check("apply: custom normals on the applied mesh", obj.data.has_custom_normals)
+
+
 def test_levels():
     obj, lat, ref, mod = scene(level=1)
     for level in (1, 2, 4):
@@ -456,7 +518,7 @@ def source_digest_mesh(me):
 
 def main():
     T.setup()
-    for fn in (test_lattice_edits, test_update_path, test_levels, test_frames_and_shape_keys, test_uvs_materials, test_hook, test_edit_modes,
+    for fn in (test_lattice_edits, test_update_path, test_positions_only_path, test_levels, test_frames_and_shape_keys, test_uvs_materials, test_hook, test_edit_modes,
                test_errors, test_undo, test_duplicate, test_save_reload, test_apply_remove):
         T.run(fn.__name__, fn)
     T.finish()

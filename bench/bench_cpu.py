@@ -1,7 +1,11 @@
 """CPU benchmark of the paper's Table 1 workload (W1): prints plan time, per-frame deform time
 (median of repeats), stage times, output counts and throughput.
 
-    PYTHONPATH=python python3 bench/bench_cpu.py [--levels 4 10 16] [--repeats 7]
+    PYTHONPATH=python python3 bench/bench_cpu.py [--levels 4 10 16] [--repeats 7] [--reuse]
+                                                 [--positions-only]
+
+--positions-only times deform(..., normals=False) (the add-on's 3.4-4.0 viewport): the same
+table, without the normal stages.
 """
 
 import argparse
@@ -24,10 +28,13 @@ def main():
     ap.add_argument("--threads", type=int, default=0)
     ap.add_argument("--reuse", action="store_true",
                     help="steady state of a frame loop: each frame overwrites the previous Result")
+    ap.add_argument("--positions-only", action="store_true",
+                    help="deform(..., normals=False): positions only, no corner normals")
     args = ap.parse_args()
     mesh = w1_mesh()
     print(f"W1: {mesh.face_count} triangles, 5x5x5 control points, degree 2x2x2; "
-          f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores")
+          f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores"
+          + ("; positions only (normals=False)" if args.positions_only else ""))
     print(f"{'L':>3} {'plan ms':>9} {'deform ms':>10} {'out tris':>10} {'out verts':>10} "
           f"{'Mtri/s':>7}  stages (ms)")
     for L in args.levels:
@@ -38,7 +45,8 @@ def main():
         for i in range(args.repeats):
             lat = w1_lattice(i + 1)
             t0 = time.perf_counter()
-            r = d.deform(lat.control_points, out=r if (args.reuse and i) else None)
+            r = d.deform(lat.control_points, out=r if (args.reuse and i) else None,
+                         normals=not args.positions_only)
             times.append((time.perf_counter() - t0) * 1e3)
             stages.append(r.stats["stage_ms"])
         med = statistics.median(times)

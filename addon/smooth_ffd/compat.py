@@ -242,19 +242,23 @@ def enable_split_normals(mesh, enable=True):
         mesh.auto_smooth_angle = np.pi
 
 
-def write_custom_normals(mesh, normals):
-    """normals: (C, 3) float32 unit vectors, one per loop. Returns the path used."""
+def write_custom_normals(mesh, normals, domain='CORNER'):
+    """normals: (C, 3) float32 unit vectors, one per loop, or with domain='POINT' (4.5+ only)
+    one per vertex. Returns the path used."""
     if HAS_FREE_NORMAL_ATTRIBUTE:
-        # A float3 corner attribute named custom_normal is a free custom normal in 4.5+: a
-        # memcpy through foreach_set instead of ~1 us per corner in normals_split_custom_set.
+        # A float3 attribute named custom_normal is a free custom normal in 4.5+ (on the
+        # corner or the point domain): a memcpy through foreach_set instead of ~1 us per
+        # corner in normals_split_custom_set.
         attr = mesh.attributes.get("custom_normal")
-        if attr is not None and (attr.data_type != 'FLOAT_VECTOR' or attr.domain != 'CORNER'):
+        if attr is not None and (attr.data_type != 'FLOAT_VECTOR' or attr.domain != domain):
             mesh.attributes.remove(attr)
             attr = None
         if attr is None:
-            attr = mesh.attributes.new("custom_normal", 'FLOAT_VECTOR', 'CORNER')
+            attr = mesh.attributes.new("custom_normal", 'FLOAT_VECTOR', domain)
         attr.data.foreach_set("vector", np.ascontiguousarray(normals, dtype=np.float32).ravel())
-        return "attribute"
+        return "attribute" if domain == 'CORNER' else "point attribute"
+    if domain != 'CORNER':
+        raise ValueError("point-domain custom normals need Blender 4.5+")
     enable_split_normals(mesh)
     # Blender refuses a flat array here; it wants one 3-vector per loop.
     mesh.normals_split_custom_set(np.ascontiguousarray(normals, dtype=np.float32).reshape(-1, 3))

@@ -26,6 +26,7 @@ class _State:
         self.result = None        # the last core Result: its arrays are reused (out=)
         self.carry = None         # carry.CarryMap of the current plan (UV maps, groups)
         self.carry_key = None
+        self.vertex_corner = None  # (plan_key, meshio.vertex_corners) of the current plan
         self.status_base = None   # last "OK ..." status, without the stack warning
         self.above = 0            # enabled modifiers above this one, as last reported
 
@@ -413,7 +414,9 @@ def _write_result(obj, ro, res, source, topology_token, exact, st):
         carry_ms = 1e3 * (time.perf_counter() - tc)
     t1 = time.perf_counter()
     if exact:
-        path = meshio.write_normals(mesh, res)
+        if st.vertex_corner is None or st.vertex_corner[0] is not st.plan_key:
+            st.vertex_corner = (st.plan_key, meshio.vertex_corners(res))
+        path = meshio.write_normals(mesh, res, st.vertex_corner[1])
     else:
         path = "from geometry"   # 3.4-4.0 viewport: Blender's own normals of the dense mesh
     mesh[NORMALS_KEY] = mode

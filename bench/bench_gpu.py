@@ -65,8 +65,7 @@ STAGED = ("SMOOTHFFD_FUSED_FIT", "staged")
 # default is the inline kernel (inline_kernels.cuh: samples evaluated inside the fit, edges
 # adjusted by each patch); "staged" is the previous default (sampling kernel + edge kernel +
 # fit from the sample buffers).
-VARIANTS = [(("SMOOTHFFD_FUSED_BLOCKS", "4"),), (("SMOOTHFFD_FUSED_BLOCKS", "6"),),
-            (("SMOOTHFFD_FUSED_LANES", "8"),), (("SMOOTHFFD_FUSED_LANES", "8"), ("SMOOTHFFD_FUSED_BLOCKS", "2")), (STAGED,),
+VARIANTS = [(("SMOOTHFFD_FUSED_BLOCKS", "4"),), (("SMOOTHFFD_FUSED_BLOCKS", "6"),), (STAGED,),
             (STAGED, ("SMOOTHFFD_FUSED_BLOCKS", "4")), (REGS,)]
 
 

@@ -160,9 +160,8 @@ def test_levels(level, path):
 REGS = ("SMOOTHFFD_FUSED_FIT", "regs")
 STAGED = ("SMOOTHFFD_FUSED_FIT", "staged")
 _S, _L, _B = "SMOOTHFFD_SAMPLE_BLOCKS", "SMOOTHFFD_FUSED_LANES", "SMOOTHFFD_FUSED_BLOCKS"
-# Inline (default) kernel with other register caps and 8 lanes, then every switch of the
-# staged kernels.
-VARIANTS = [((_B, "4"),), ((_B, "6"),), ((_L, "8"),), ((_L, "8"), (_B, "2")), ((_L, "8"), (_B, "4")), (STAGED,)] + [(STAGED,) + v for v in [
+# Inline (default) kernel with other register caps, then every switch of the staged kernels.
+VARIANTS = [((_B, "4"),), ((_B, "6"),), (STAGED,)] + [(STAGED,) + v for v in [
     ((_S, "1"),), ((_S, "2"),), ((_S, "3"),), ((_S, "4"),), ((_S, "fixed"),), ((_L, "4"),), ((_L, "16"),),
     ((_B, "4"),), ((_L, "4"), (_B, "1")), ((_L, "4"), (_B, "5"))]] + [
     (REGS,), (REGS, (_B, "3")), (REGS, (_B, "4")), (REGS, (_L, "1")), (REGS, (_L, "8"))]
@@ -328,6 +327,45 @@ def test_high_degree_falls_back_to_staged_kernels(path):
     staged ones (kMaxTerms) do; the result still matches the CPU."""
     rng = np.random.default_rng(55)
     check(icosphere(2), bspline(rng, degree=(5, 4, 2), shape=(7, 6, 5)), level=4, path=path)
+
+
+@pytest.mark.parametrize("path", PATHS)
+def test_large_lattice_inline_copies_controls(path):
+    """More control points than ride in the inline kernel's launch parameters (kParamPoints =
+    256): the frame copies them to the device first and the kernel reads them from there."""
+    rng = np.random.default_rng(78)
+    lat = bspline(rng, degree=(2, 2, 2), shape=(9, 8, 7), amount=0.03)
+    dp, _ = check(icosphere(2), lat, level=6, path=path)
+    plan = smoothffd.Deformer(icosphere(2), lat, level=6, device="cpu").plan
+    times = _core.CudaEvaluator(plan, path).evaluate_device(
+        np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32))
+    assert "upload" in times
+
+
+def test_high_level_falls_back_to_staged_kernels():
+    """A level whose tessellation grid does not fit the inline kernel's shared tables (here 30:
+    496 grid points) runs the staged kernels; the result still matches the CPU."""
+    rng = np.random.default_rng(80)
+    lat = bspline(rng)
+    check(icosphere(1), lat, level=30, path="fused")
+    plan = smoothffd.Deformer(icosphere(1), lat, level=30, device="cpu").plan
+    times = _core.CudaEvaluator(plan, "fused").evaluate_device(
+        np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32))
+    assert "sampling" in times and "sample_fit_tessellate" not in times
+
+
+def test_small_lattice_inline_needs_no_upload():
+    """Up to 256 control points the inline kernel takes them as launch parameters: a frame is
+    one launch, no copy to the device before it."""
+    rng = np.random.default_rng(79)
+    lat = bspline(rng)
+    plan = smoothffd.Deformer(icosphere(2), lat, level=6, device="cpu").plan
+    ev = _core.CudaEvaluator(plan, "fused")
+    times = ev.evaluate_device(np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32))
+    assert "upload" not in times and "sample_fit_tessellate" in times
+    ev.path = "cublas"
+    times = ev.evaluate_device(np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32))
+    assert "upload" in times
 
 
 @pytest.mark.parametrize("path", PATHS)

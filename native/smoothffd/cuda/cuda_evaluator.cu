@@ -130,19 +130,31 @@ struct GridInfo {
 };
 
 // Writes v (one V3 a lane, lanes [0, count) valid) to dst[0 .. 3 count) with each store
-// instruction covering 32 consecutive floats: lane l stores floats l, l + 32, l + 64, fetched
-// from their owners by shuffles. A plain store3 per lane writes a warp's 384 bytes in three
-// strided passes, each touching every sector partially (three times the L2 write traffic).
-// Every lane of the warp must call it.
-__device__ __forceinline__ void store3_coalesced(float* __restrict__ dst, V3 v, int count) {
+// instruction covering 32 consecutive floats: the warp's 96 floats go through its slice of
+// shared memory (buf, 96 floats; stride 3 and stride 1 are both free of bank conflicts) and
+// lane l stores floats l, l + 32, l + 64. A plain store3 per lane writes a warp's 384 bytes in
+// three strided passes, each touching every sector partially (three times the L2 write
+// traffic). Every lane of the warp must call it.
+__device__ __forceinline__ void store3_coalesced(float* __restrict__ dst, V3 v, int count, float* buf) {
   const int lane = threadIdx.x & 31;
+  buf[3 * lane] = v.x;
+  buf[3 * lane + 1] = v.y;
+  buf[3 * lane + 2] = v.z;
+  __syncwarp();
+  const int n = 3 * count;
 #pragma unroll
-  for (int r = 0; r < 3; ++r) {
-    const int f = lane + 32 * r, src = f / 3, c = f - 3 * src;
-    const float x = __shfl_sync(0xffffffffu, v.x, src), y = __shfl_sync(0xffffffffu, v.y, src),
-                z = __shfl_sync(0xffffffffu, v.z, src);
-    if (src < count) dst[f] = c == 0 ? x : c == 1 ? y : z;
-  }
+  for (int r = 0; r < 3; ++r)
+    if (lane + 32 * r < n) dst[lane + 32 * r] = buf[lane + 32 * r];
+  __syncwarp();
+}
+
+// q = j / d for 0 <= j < 2^22 and 0 < d, inv = 1.0f / d: a float product and one correction
+// instead of the ~20 instructions of an integer division.
+__device__ __forceinline__ int div_small(int j, int d, float inv) {
+  int q = (int)(((float)j + 0.5f) * inv);
+  if (q * d > j) --q;
+  else if ((q + 1) * d <= j) ++q;
+  return q;
 }
 
 // Control points of a patch in the fused kernels' shared memory: 30 floats padded to 32, so
@@ -151,15 +163,15 @@ constexpr int kCtrlStride = 32;
 
 // Position x and unit normal n of a patch at a grid point: B, the point's cubic basis (12
 // floats, 16-byte aligned: PlanView::grid_basis_padded), cg and cn its geometry and normal
-// control points (kCtrlStride floats, 16-byte aligned, shared memory). eval_cubic and
-// unit_patch_normal (stages.hpp) in the same order of operations, with vector loads (3 + 16
-// instead of 10 + 60 scalar loads a point).
-__device__ __forceinline__ void eval_point(const float* __restrict__ B, const float* cg, const float* cn, V3& x,
-                                           V3& n) {
+// control points (kCtrlStride floats, 16-byte aligned, shared memory), fallback the patch's
+// unit_patch_normal fallback. eval_cubic and unit_patch_normal (stages.hpp) in the same order
+// of operations, with vector loads (3 + 16 instead of 10 + 60 scalar loads a point).
+__device__ __forceinline__ void eval_point(const float* __restrict__ B, const float* cg, const float* cn,
+                                           V3 fallback, V3& x, V3& n) {
   float b[12], g[kCtrlStride], c[kCtrlStride];
 #pragma unroll
   for (int i = 0; i < 3; ++i) {
-    const float4 q = __ldg(reinterpret_cast<const float4*>(B) + i);
+    const float4 q = reinterpret_cast<const float4*>(B)[i];
     b[4 * i] = q.x, b[4 * i + 1] = q.y, b[4 * i + 2] = q.z, b[4 * i + 3] = q.w;
   }
 #pragma unroll
@@ -175,7 +187,6 @@ __device__ __forceinline__ void eval_point(const float* __restrict__ B, const fl
     x += b[k] * v3(g[3 * k], g[3 * k + 1], g[3 * k + 2]);
     nv += b[k] * v3(c[3 * k], c[3 * k + 1], c[3 * k + 2]);
   }
-  const V3 fallback = normalized_or(v3(c[0], c[1], c[2]) + v3(c[3], c[4], c[5]) + v3(c[6], c[7], c[8]), v3(0, 0, 1));
   n = normalized_or(nv, fallback);
 }
 
@@ -276,20 +287,31 @@ __global__ void k_edge(PlanView pv, FrameView fv) {
 
 // Tessellation of a block's PB fitted patches from shared memory, one thread a (patch, grid
 // point): positions of the output vertices the patch owns, normals of its render vertices.
+// gi and basis (PlanView::grid_basis_padded): global or shared copies. Every thread of the
+// block must call it (it synchronizes the block once).
 template <int PB, int LANES>
 __device__ __forceinline__ void tessellate_block(const PlanView& pv, const FrameView& fv, const GridInfo* __restrict__ gi,
-                                                 const float (*ctrl)[2][kCtrlStride], const int (*sedge)[3],
+                                                 const float* __restrict__ basis, const float (*ctrl)[2][kCtrlStride], const int (*sedge)[3],
                                                  const uint8_t* sflags, const PatchRender* srender, int base,
                                                  long long render_shift, float* __restrict__ normals) {
+  constexpr int kWarps = PB * LANES / 32;
+  __shared__ float fallback[PB][3];         // unit_patch_normal's fallback, once a patch
+  __shared__ float out_buf[kWarps][2][96];  // store3_coalesced's staging, a warp's slice
   const int G = pv.grid, L = pv.level;
   const int np = min(PB, pv.patches - base);
   const long long interior0 = pv.sub_vertices + (long long)pv.edges * (L - 1);
   const int IG = (L - 1) * (L - 2) / 2, NB = G - IG;
+  for (int q = threadIdx.x; q < np; q += PB * LANES) {
+    const float* cn = ctrl[q][1];
+    store3(fallback[q], normalized_or(load3(cn) + load3(cn + 3) + load3(cn + 6), v3(0, 0, 1)));
+  }
+  __syncthreads();
   // Corners and edge points: one thread a (patch, point), scattered to their owners' slots.
   const int items = np * NB;
+  const float inv_nb = 1.0f / (float)NB;
   for (int i = threadIdx.x; i < items; i += PB * LANES) {
-    int q = i / NB, gp = gi[i - q * NB].order;
-    const float* B = pv.grid_basis_padded + 12 * gp;
+    int q = div_small(i, NB, inv_nb), gp = gi[i - q * NB].order;
+    const float* B = basis + 12 * gp;
     GridInfo t = gi[gp];
     uint8_t f = sflags[q];
     long long o = -1;
@@ -300,24 +322,27 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
     long long r = render_written(pv, srender[q], t, t.kind == 1 && ((f >> (3 + t.which)) & 1), -1, render_shift);
     if (r < 0 && o < 0) continue;
     V3 x, n;
-    eval_point(B, ctrl[q][0], ctrl[q][1], x, n);
+    eval_point(B, ctrl[q][0], ctrl[q][1], load3(fallback[q]), x, n);
     if (r >= 0) store3(normals + 3 * r, n);
     if (o >= 0) store3(fv.positions + 3 * o, x);
   }
   // Interior points: the block's are one contiguous run of output (and render) vertices, so
   // each warp takes 32 consecutive ones and writes them with coalesced stores.
-  const int n_int = np * IG, warps = PB * LANES / 32;
+  const int n_int = np * IG, warp = threadIdx.x / 32;
   const long long o0 = interior0 + (long long)base * IG;
-  for (int j0 = (threadIdx.x / 32) * 32; j0 < n_int; j0 += warps * 32) {
+  const float inv_ig = IG > 0 ? 1.0f / (float)IG : 0.0f;
+  float* pos = fv.positions + 3 * (o0 + warp * 32);  // the warp's run of 32 vertices
+  float* nrm = normals + 3 * (o0 + warp * 32 + render_shift);
+  for (int j0 = warp * 32; j0 < n_int; j0 += kWarps * 32, pos += 96 * kWarps, nrm += 96 * kWarps) {
     const int j = j0 + (threadIdx.x & 31);
     V3 x = v3(0, 0, 0), n = v3(0, 0, 0);
     if (j < n_int) {
-      const int q = j / IG, gp = gi[NB + j - q * IG].order;
-      eval_point(pv.grid_basis_padded + 12 * gp, ctrl[q][0], ctrl[q][1], x, n);
+      const int q = div_small(j, IG, inv_ig), gp = gi[NB + j - q * IG].order;
+      eval_point(basis + 12 * gp, ctrl[q][0], ctrl[q][1], load3(fallback[q]), x, n);
     }
     const int count = min(32, n_int - j0);
-    store3_coalesced(fv.positions + 3 * (o0 + j0), x, count);
-    store3_coalesced(normals + 3 * (o0 + j0 + render_shift), n, count);
+    store3_coalesced(pos, x, count, out_buf[warp][0]);
+    store3_coalesced(nrm, n, count, out_buf[warp][1]);
   }
 }
 
@@ -388,7 +413,8 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     srender[lp] = prender[p];
   }
   __syncthreads();
-  tessellate_block<PB, LANES>(pv, fv, gi, ctrl, sedge, sflags, srender, base, render_shift, normals);
+  tessellate_block<PB, LANES>(pv, fv, gi, pv.grid_basis_padded, ctrl, sedge, sflags, srender, base, render_shift,
+                              normals);
 }
 
 // Same fit and tessellation with fewer live registers (the default): the LANES threads of a
@@ -471,7 +497,8 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     srender[lp] = prender[p];
   }
   __syncthreads();
-  tessellate_block<PB, LANES>(pv, fv, gi, ctrl, sedge, sflags, srender, base, render_shift, normals);
+  tessellate_block<PB, LANES>(pv, fv, gi, pv.grid_basis_padded, ctrl, sedge, sflags, srender, base, render_shift,
+                              normals);
 }
 
 #include "smoothffd/cuda/inline_kernels.cuh"
@@ -717,11 +744,11 @@ struct CudaEvaluator::Impl {
   // Inline path tables: usable when the plan has at most 4 terms an axis, its lattice tables
   // fit in shared memory and the constraint columns are where k_inline expects them.
   bool inline_ok = false;
-  size_t plan_pieces = 0;
+  InlineArgs inline_args{};
+  std::vector<int> inline_grid;  // resident blocks of each k_inline instantiation (persistent grid)
   uint8_t* corner_owns = nullptr;  // P: bit k, the patch writes corner k's output position
   int* loose = nullptr;            // sub-vertices in no patch
   int loose_count = 0;
-  ColumnMap column_map{};
   float* D = nullptr;
   float* normals = nullptr;  // R x 3 (render vertices)
   // cuBLAS path scratch (allocated on first use)
@@ -753,16 +780,22 @@ struct CudaEvaluator::Impl {
     Q = arena.alloc<float>(G * 6 * P);
   }
 
-  // Corner ownership and loose vertices of the inline path, and whether it applies.
+  // The inline path's tables (InlineArgs, inline_kernels.cuh), corner ownership and loose
+  // vertices, and whether the path applies.
   void build_inline_tables(const Plan& p) {
-    const InlineLattice lat{nullptr, p.dims[0] * p.dims[1] * p.dims[2], (int)p.pieces.size()};
-    inline_ok = max_terms <= 4 && lat.shared_bytes() <= kInlineSharedBytes && p.columns - 9 <= kMaxInlineGrid &&
-                constraint_columns_as_expected(p);
+    const int points = p.dims[0] * p.dims[1] * p.dims[2], n_pieces = (int)p.pieces.size();
+    InlineArgs& ia = inline_args;
+    ia = InlineArgs{};
+    ia.points = points;
+    ia.n_pieces = n_pieces;
+    inline_ok = max_terms <= 4 && n_pieces < 1024 && ia.shared_bytes(p.columns, p.grid) <= kInlineSharedBytes &&
+                p.columns - 9 <= kMaxInlineGrid && constraint_columns_as_expected(p);
     if (!inline_ok) return;
     // Constraint columns that are grid points with the same sample in every patch.
     const int K = p.columns, K0 = K - 9;
-    std::fill(std::begin(column_map.con_of), std::end(column_map.con_of), int8_t(-1));
-    column_map.n_extra = 0;
+    ColumnMap cm{};
+    std::fill(std::begin(cm.con_of), std::end(cm.con_of), int8_t(-1));
+    cm.n_extra = 0;
     for (int j = 0; j < 9; ++j) {
       int dup = -1;
       for (int k = 0; k < K0 && dup < 0; ++k) {
@@ -773,10 +806,63 @@ struct CudaEvaluator::Impl {
         if (same) dup = k;
       }
       if (dup >= 0)
-        column_map.con_of[dup] = int8_t(j);
+        cm.con_of[dup] = int8_t(j);
       else
-        column_map.extra[column_map.n_extra++] = int8_t(j);
+        cm.extra[cm.n_extra++] = int8_t(j);
     }
+    ia.column_map = arena.upload(std::vector<ColumnMap>{cm});
+    std::vector<float4> col((size_t)K);
+    for (int k = 0; k < K; ++k)
+      col[k] = make_float4(p.column_bary[3 * k], p.column_bary[3 * k + 1], p.column_bary[3 * k + 2],
+                           k < K0 ? p.fit_matrix[(size_t)kCentre * K + k] : 0.0f);
+    ia.column = arena.upload(col);
+    // M_r's last 9 columns, and the sum of its six edge rows in the order finish_patch_from
+    // adds the fitted edge control points (edge k: the point next to corner k, then k + 1).
+    for (int r = 0; r < 10; ++r)
+      for (int q = 0; q < 9; ++q) ia.mrow[r][q] = p.fit_matrix[(size_t)r * K + K0 + q];
+    for (int q = 0; q < 9; ++q) {
+      float s = 0.0f;
+      for (int k = 0; k < 3; ++k)
+        s += ia.mrow[edge_control_index(k, false)][q] + ia.mrow[edge_control_index(k, true)][q];
+      ia.mrow[10][q] = s;
+    }
+    // Axis pieces in the kernel's form: t = dot(map.xyz, p) + map.w.
+    const int stride[3] = {p.dims[1] * p.dims[2], p.dims[2], 1};
+    std::vector<InlinePiece> pcs((size_t)n_pieces);
+    for (int a = 0; a < 3; ++a) {
+      const int end = a < 2 ? p.axis_offset[a + 1] : n_pieces;
+      for (int i = p.axis_offset[a]; i < end; ++i) {
+        const AxisPieceF& src = p.pieces[i];
+        InlinePiece& d = pcs[i];
+        const float* m = p.param_map + 4 * a;
+        const double s = src.inv_scale;
+        d.map = src.degree == 0 ? make_float4(0, 0, 0, 0)
+                                : make_float4((float)(m[0] * s), (float)(m[1] * s), (float)(m[2] * s),
+                                              (float)(((double)m[3] - src.origin) * s));
+        float c[4][4] = {};
+        int o[4] = {0, 0, 0, 0};
+        for (int k = 0; k < 4 && k < kMaxTerms; ++k) {
+          for (int q = 0; q < 4 && q < kMaxTerms; ++q) c[k][q] = src.coef[k][q];
+          o[k] = src.index[k] * stride[a];
+        }
+        for (int k = 0; k < 4; ++k) d.coef[k] = make_float4(c[k][0], c[k][1], c[k][2], c[k][3]);
+        d.off = make_int4(o[0], o[1], o[2], o[3]);
+      }
+    }
+    ia.pieces = arena.upload(pcs);
+    // Per sample: position and weight in one 16-byte record, the pieces as table indices.
+    std::vector<float4> pw((size_t)p.samples);
+    std::vector<uint32_t> box((size_t)p.samples);
+    for (int s = 0; s < p.samples; ++s) {
+      pw[s] = make_float4(p.sample_position[3 * (size_t)s], p.sample_position[3 * (size_t)s + 1],
+                          p.sample_position[3 * (size_t)s + 2], p.sample_weight[s]);
+      uint32_t b = 0;
+      for (int a = 0; a < 3; ++a)
+        b |= uint32_t(p.axis_offset[a] + ((p.sample_piece[s] >> (10 * a)) & 1023u)) << (10 * a);
+      box[s] = b;
+    }
+    ia.sample_pw = arena.upload(pw);
+    ia.sample_box = arena.upload(box);
     std::vector<uint8_t> mine((size_t)p.patches, 0);
     std::vector<char> seen((size_t)p.sub_vertices, 0);
     for (int q = 0; q < p.patches; ++q)
@@ -797,12 +883,41 @@ struct CudaEvaluator::Impl {
 
   void stage_D(const float* Dh) { std::memcpy(h_D.ptr, Dh, nD * sizeof(float)); }
 
+  // Whether a frame of the inline path passes the control values as launch parameters
+  // (InlineControls) instead of copying them to the device first.
+  bool inline_params() const { return nD <= 3 * (size_t)kParamPoints && loose_count == 0; }
+
+  // One k_inline launch: a persistent grid of as many blocks as fit on the device at once
+  // (queried once per instantiation; `slot` indexes inline_grid), each taking groups of 32
+  // patches until none is left.
+  template <int C, int MINB>
+  void launch_inline(int slot, size_t smem, const InlineControls& dp) {
+    auto kern = k_inline<C, 32, 4, MINB>;
+    if (inline_grid.size() <= (size_t)slot) inline_grid.resize(slot + 1, 0);
+    if (inline_grid[slot] == 0) {
+      int per_sm = 0, sms = 0, dev = 0;
+      CK(cudaGetDevice(&dev));
+      CK(cudaDeviceGetAttribute(&sms, cudaDevAttrMultiProcessorCount, dev));
+      // Opt in to the largest table any plan may bring (a per-function setting, shared by
+      // every evaluator), then ask how many blocks of this plan's size fit an SM.
+      CK(cudaFuncSetAttribute(kern, cudaFuncAttributeMaxDynamicSharedMemorySize, (int)kInlineSharedBytes));
+      CK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&per_sm, kern, 128, smem));
+      inline_grid[slot] = std::max(1, per_sm) * std::max(1, sms);
+    }
+    InlineArgs ia = inline_args;
+    ia.groups = (int)blocks_for(pv.patches, 32);
+    ia.D = inline_params() ? nullptr : D;
+    const int grid = std::min(ia.groups, inline_grid[slot]);
+    kern<<<grid, 128, smem, stream>>>(pv, fv, ia, dp, grid_info, owns, corner_owns, prender, render_shift, normals);
+  }
+
   // The inline fused path (see fused_fit and inline_kernels.cuh): one kernel, plus one for
   // loose vertices when the mesh has any.
   template <int C, class Mark>
   void run_inline_c(Mark& mark) {
-    const InlineLattice lat{D, (int)(nD / 3), (int)plan_pieces};
-    const size_t smem = lat.shared_bytes();
+    const size_t smem = inline_args.shared_bytes(pv.columns, pv.grid);
+    InlineControls dp;
+    if (inline_params()) std::memcpy(dp.v, h_D.ptr, nD * sizeof(float));
     if (loose_count > 0) {
       mark("loose_vertices");
       k_loose_vertices<C><<<blocks_for(loose_count, 256), 256, 0, stream>>>(pv, fv, D, loose, loose_count);
@@ -810,32 +925,17 @@ struct CudaEvaluator::Impl {
     }
     mark("sample_fit_tessellate");
     if (pv.patches > 0) {
-      const long long sh = render_shift;
-      const int lanes = fused_lanes > 0 ? fused_lanes : 4;
-      // Uncapped, these kernels take ~80 (C = 2) to ~130 (C = 4) registers. For C = 3 the
-      // default is 4 lanes a patch, 32 patches a block of 128, MINB 5 (~100 registers, no
-      // spills: measured fastest, docs/benchmarks.md); SMOOTHFFD_FUSED_BLOCKS = 4 or 6 with 4
-      // lanes, and SMOOTHFFD_FUSED_LANES = 8 with FUSED_BLOCKS = 2, 3 (default) or 4, for
-      // comparison. C = 2 and 4 run 8 lanes, MINB 2.
-      const int minb = fused_blocks;
-#define SFFD_INLINE(PB, LANES, MINB)                                                              \
-  k_inline<C, PB, LANES, MINB><<<blocks_for(pv.patches, PB), PB * LANES, smem, stream>>>( \
-      pv, fv, lat, column_map, grid_info, owns, corner_owns, prender, sh, normals)
+      // 4 lanes a patch, 32 patches a block of 128. For C = 3 the register cap comes from
+      // MINB 5 blocks an SM (the default; measured fastest, docs/benchmarks.md), or 4 or 6
+      // (SMOOTHFFD_FUSED_BLOCKS) for comparison; C = 2 and 4 run MINB 2.
       if constexpr (C != 3)
-        SFFD_INLINE(32, 8, 2);
-      else if (lanes == 4 && minb == 4)
-        SFFD_INLINE(32, 4, 4);
-      else if (lanes == 4 && minb == 6)
-        SFFD_INLINE(32, 4, 6);
-      else if (lanes == 4)
-        SFFD_INLINE(32, 4, 5);
-      else if (minb == 2)
-        SFFD_INLINE(32, 8, 2);
-      else if (minb == 4)
-        SFFD_INLINE(32, 8, 4);
+        launch_inline<C, 2>(0, smem, dp);
+      else if (fused_blocks == 4)
+        launch_inline<C, 4>(1, smem, dp);
+      else if (fused_blocks == 6)
+        launch_inline<C, 6>(2, smem, dp);
       else
-        SFFD_INLINE(32, 8, 3);
-#undef SFFD_INLINE
+        launch_inline<C, 5>(3, smem, dp);
       CK_LAUNCH(k_inline);
     }
     mark(nullptr);
@@ -861,9 +961,12 @@ struct CudaEvaluator::Impl {
       CK(cudaEventRecord(events.ev[e++], stream));
     };
     const int T = 256;
-    mark("upload");
-    CK(cudaMemcpyAsync(D, h_D.ptr, nD * sizeof(float), cudaMemcpyHostToDevice, stream));
-    if (path == kFused && fused_fit < 0 && inline_ok) {
+    const bool inline_path = path == kFused && fused_fit < 0 && inline_ok;
+    if (!(inline_path && inline_params())) {  // else the control values ride in the launch
+      mark("upload");
+      CK(cudaMemcpyAsync(D, h_D.ptr, nD * sizeof(float), cudaMemcpyHostToDevice, stream));
+    }
+    if (inline_path) {
       run_inline(mark);
       return;
     }
@@ -1042,7 +1145,6 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
   m.owns = a.upload(owns);
   m.prender = a.upload(build_patch_render(p, tt));
   m.render_shift = (long long)p.render_vertices - p.output_vertices;
-  m.plan_pieces = p.pieces.size();
   m.build_inline_tables(p);
 
   const long long S = p.samples, E = p.edges, P = p.patches, N = p.output_vertices, G = p.grid;

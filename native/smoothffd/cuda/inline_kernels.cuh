@@ -13,13 +13,22 @@
 // same edge control points and the surface stays watertight, as with one thread an edge.
 #pragma once
 
-// Lattice tables an inline kernel stages in shared memory: the control values padded to
-// float4 (one 16-byte load a control point) and the axis pieces.
-struct InlineLattice {
-  const float* D;  // control values, 3 floats a point (device)
-  int points;      // control points
-  int pieces;      // axis pieces of the three axes
-  size_t shared_bytes() const { return 16 * (size_t)points + sizeof(AxisPieceF) * (size_t)pieces; }
+// Largest lattice whose control values ride in the launch's parameters (3 KB) instead of a
+// copy to the device before the kernel: a frame is then one launch and nothing else.
+constexpr int kParamPoints = 256;
+struct InlineControls {
+  float v[3 * kParamPoints];
+};
+
+// One axis piece as the inline kernel reads it (shared memory, 6 x 16 bytes): the piece's own
+// parameter t = dot(map.xyz, p) + map.w (the lattice's object -> parameter map, the piece's
+// origin and 1 / scale folded in; all zeros for degree 0, so t = 0), the power coefficients of
+// its C <= 4 weights (zeros beyond the degree: the Horner scheme needs no branch) and each
+// term's control-point offset along the axis (index times the axis stride, in float4s).
+struct InlinePiece {
+  float4 map;
+  float4 coef[4];
+  int4 off;
 };
 
 // The constraint columns (corners, edge points at 1/3 and 2/3) are usually fitting-grid points
@@ -30,45 +39,79 @@ constexpr int kMaxInlineGrid = 64;  // fitting-grid columns; C <= 4 gives degree
 struct ColumnMap {
   int8_t con_of[kMaxInlineGrid];
   int8_t extra[9];
-  int n_extra;
+  int8_t n_extra;
+  int8_t pad[2];
+};
+static_assert(sizeof(ColumnMap) == 76, "ColumnMap is staged as 19 words");
+
+// Everything the inline kernel needs besides the plan view, built once per plan
+// (CudaEvaluator::Impl::build_inline_tables). mrow: M_r's last 9 columns (rows 0-9: the
+// constraint columns' part of each control point) and, row 10, the sum of its six edge rows
+// (the fitted edge control points' sum, which finish_patch_from compares with the adjusted
+// ones). It is a launch parameter so the products read it from the constant bank.
+struct InlineArgs {
+  const InlinePiece* pieces;
+  const float4* sample_pw;      // S: position, vertex weight
+  const uint32_t* sample_box;   // S: the three pieces' indices into `pieces`, 10 bits each
+  const float4* column;         // K: barycentric point, centre-row coefficient (0 for constraint columns)
+  const ColumnMap* column_map;
+  const float* D;               // control values on the device, or null: from InlineControls
+  int points, n_pieces, groups;
+  float mrow[11][9];
+  // Dynamic shared memory: control values, pieces, columns, the grid's padded basis and
+  // GridInfo (G points), the ColumnMap.
+  size_t shared_bytes(int K, int G) const {
+    return 16 * ((size_t)points + 6 * (size_t)n_pieces + (size_t)K + 4 * (size_t)G) + sizeof(ColumnMap);
+  }
 };
 
-// Largest shared-memory table an inline launch may ask for: with the ~22 KB of static shared
-// memory (32 patches a block) it stays under the 48 KB a block gets without an opt-in.
-// Larger lattices (beyond about 1000 control points of degree 2) run the staged path.
-constexpr size_t kInlineSharedBytes = 24 * 1024;
+// Largest dynamic shared-memory table an inline launch may ask for (the kernels opt in to it;
+// with the ~27 KB of static shared memory, 4 blocks still fit an SM). Larger lattices (beyond
+// about 1500 control points of degree 2) or levels (beyond about 40) run the staged path.
+constexpr size_t kInlineSharedBytes = 28 * 1024;
 
-__device__ __forceinline__ void stage_lattice(const PlanView& pv, const InlineLattice& lat, float4* sD, AxisPieceF* sP) {
-  for (int i = threadIdx.x; i < lat.points; i += blockDim.x)
-    sD[i] = make_float4(lat.D[3 * i], lat.D[3 * i + 1], lat.D[3 * i + 2], 0.0f);
-  const int words = lat.pieces * (int)(sizeof(AxisPieceF) / 4);
-  const int* src = reinterpret_cast<const int*>(pv.pieces);
-  int* dst = reinterpret_cast<int*>(sP);
-  for (int i = threadIdx.x; i < words; i += blockDim.x) dst[i] = src[i];
-}
-
-// sample_point (stages.hpp) with C terms an axis, the pieces and float4 control values from
-// shared memory and 32-bit indices: tensor_eval_fixed's contraction in the same order of
-// operations, so the result is the CPU's up to the compiler's contraction of multiply-adds.
+// F and J at one sample from the shared tables: sample_point (stages.hpp) with the axis
+// pieces in power form, t from the folded map, the tensor contraction of tensor_eval_fixed in
+// the same order, and J = I + w (dF/dt) A' with A' = the pieces' maps (dt/dp).
 template <int C>
-__device__ __forceinline__ void sample_inline(const PlanView& pv, const float4* __restrict__ D4,
-                                              const AxisPieceF* pieces, int s, float F[3], float J[9]) {
-  float p[3] = {pv.sample_position[3 * s], pv.sample_position[3 * s + 1], pv.sample_position[3 * s + 2]};
-  int idx[3][C];
-  float w[3][C], dw[3][C];
-  sample_weights<C>(pv, p, pv.sample_piece[s], idx, w, dw, pieces);
-  const int nv = pv.dims[1], nw = pv.dims[2];
+__device__ __forceinline__ void sample_inline(const float4* __restrict__ D4, const InlinePiece* __restrict__ pcs,
+                                              float4 pw, uint32_t box, float F[3], float J[9]) {
+  float w[3][C], dw[3][C], m[3][3];
+  int off[3][C];
+#pragma unroll
+  for (int a = 0; a < 3; ++a) {
+    const InlinePiece& pc = pcs[(box >> (10 * a)) & 1023u];
+    const float4 mp = pc.map;
+    const int4 o = pc.off;
+    m[a][0] = mp.x, m[a][1] = mp.y, m[a][2] = mp.z;
+    const float t = fmaf(mp.x, pw.x, fmaf(mp.y, pw.y, fmaf(mp.z, pw.z, mp.w)));
+    const int oo[4] = {o.x, o.y, o.z, o.w};
+#pragma unroll
+    for (int k = 0; k < C; ++k) {
+      const float4 c4 = pc.coef[k];
+      const float c[4] = {c4.x, c4.y, c4.z, c4.w};
+      float v = c[C - 1], d = 0.0f;
+#pragma unroll
+      for (int q = C - 2; q >= 0; --q) {
+        d = fmaf(d, t, v);
+        v = fmaf(v, t, c[q]);
+      }
+      w[a][k] = v;
+      dw[a][k] = d;
+      off[a][k] = oo[k];
+    }
+  }
   float val[3] = {0, 0, 0}, gu[3] = {0, 0, 0}, gv[3] = {0, 0, 0}, gw[3] = {0, 0, 0};
 #pragma unroll
   for (int a = 0; a < C; ++a) {
     float av[3] = {0, 0, 0}, avd[3] = {0, 0, 0}, awd[3] = {0, 0, 0};
 #pragma unroll
     for (int b = 0; b < C; ++b) {
-      const int row = (idx[0][a] * nv + idx[1][b]) * nw;
+      const float4* row = D4 + off[0][a] + off[1][b];
       float bw[3] = {0, 0, 0}, bwd[3] = {0, 0, 0};
 #pragma unroll
       for (int c = 0; c < C; ++c) {
-        const float4 d4 = D4[row + idx[2][c]];
+        const float4 d4 = row[off[2][c]];
         const float d[3] = {d4.x, d4.y, d4.z};
 #pragma unroll
         for (int r = 0; r < 3; ++r) {
@@ -91,137 +134,203 @@ __device__ __forceinline__ void sample_inline(const PlanView& pv, const float4* 
       gw[r] += w[0][a] * awd[r];
     }
   }
-  float grad[9];
+  const float p[3] = {pw.x, pw.y, pw.z};
 #pragma unroll
   for (int r = 0; r < 3; ++r) {
-    grad[3 * r] = gu[r];
-    grad[3 * r + 1] = gv[r];
-    grad[3 * r + 2] = gw[r];
+    F[r] = p[r] + pw.w * val[r];
+#pragma unroll
+    for (int c = 0; c < 3; ++c) {
+      const float g = gu[r] * m[0][c] + gv[r] * m[1][c] + gw[r] * m[2][c];
+      J[3 * r + c] = (r == c ? 1.0f : 0.0f) + pw.w * g;
+    }
   }
-  finish_sample(pv, p, s, val, grad, F, J);
 }
 
-// One kernel a frame. LANES threads a patch: each evaluates its share of the K columns
-// (sample, Jacobian, deformed interpolated normal) and accumulates the centre row over the
-// free columns; the 9 constraint columns go to shared memory with the corners' Jacobians.
-// Then the 60 constraint products (lanes interleaved), the three edges (lanes 0-2, see
-// edge_control_points), finish_patch_from on lane 0, and the block's tessellation.
+// One kernel a frame, persistent: each block stages the lattice tables once, then takes
+// groups of PB patches (group, group + gridDim.x, ...). LANES threads a patch:
+// 1 + 3. each lane evaluates its share of the columns (sample, Jacobian, deformed
+//    interpolated normal) and accumulates the centre row over the free columns; the 9
+//    constraint columns go to shared memory with the corners' Jacobians;
+// 2. lanes 0-2: component c of the constraint products (M_r's last 9 columns from the launch
+//    parameters), then edge c (see edge_control_points); lane 3 loads the tessellation's
+//    per-patch tables;
+// 4. lane 0: finish_patch_from; then the block tessellates its patches.
 // corner_owns[p] bit k: patch p writes the output position of its corner k (each sub-vertex
 // is written by the first patch that has it).
 template <int C, int PB, int LANES, int MINB>
 __global__ void __launch_bounds__(PB* LANES, MINB)
-    k_inline(PlanView pv, FrameView fv, InlineLattice lat, ColumnMap cm, const GridInfo* __restrict__ gi,
+    k_inline(PlanView pv, FrameView fv, InlineArgs ia, InlineControls dparam, const GridInfo* __restrict__ gi,
              const uint8_t* __restrict__ owns, const uint8_t* __restrict__ corner_owns,
              const PatchRender* __restrict__ prender, long long render_shift, float* __restrict__ normals) {
-  static_assert(32 % LANES == 0 && LANES >= 4, "lanes of a patch share a warp; 3 of them adjust the edges");
+  static_assert(LANES == 4, "lanes 0-2 take a component / an edge each, lane 3 the tables");
   extern __shared__ float4 lattice_shared[];
   __shared__ __align__(16) float ctrl[PB][2][kCtrlStride];
   __shared__ float stage[PB][9][6];       // constraint column j: x (0-2), n (3-5)
   __shared__ float corner_jac[PB][3][9];  // Jacobians at the corners (constraint columns 0-2)
   __shared__ float edge_cp[PB][3][2][3];  // adjusted edge k: next to corner k, next to corner k+1
-  __shared__ float mcon[10][9];           // M_r's last 9 columns
+  __shared__ float geo[PB][2][3];         // fitted centre, sum of the fitted edge control points
   __shared__ int sedge[PB][3];
   __shared__ uint8_t sflags[PB];  // bits 0-2: owns edge k; bits 3-5: edge k reversed
   __shared__ PatchRender srender[PB];
-  float4* sD = lattice_shared;
-  AxisPieceF* sP = reinterpret_cast<AxisPieceF*>(lattice_shared + lat.points);
-  const int base = blockIdx.x * PB;
-  const int lp = threadIdx.x / LANES, lane = threadIdx.x % LANES;
-  const int p = base + lp;
   const int K = pv.columns, K0 = K - 9;
-  for (int i = threadIdx.x; i < 90; i += PB * LANES) mcon[i / 9][i % 9] = pv.fit_matrix[(i / 9) * K + K0 + i % 9];
-  stage_lattice(pv, lat, sD, sP);
+  float4* sD = lattice_shared;
+  InlinePiece* sP = reinterpret_cast<InlinePiece*>(lattice_shared + ia.points);
+  float4* sCol = lattice_shared + ia.points + 6 * ia.n_pieces;
+  float4* sBasis = sCol + K;  // G x 12 floats: PlanView::grid_basis_padded
+  GridInfo* sGi = reinterpret_cast<GridInfo*>(sBasis + 3 * pv.grid);
+  ColumnMap* sMap = reinterpret_cast<ColumnMap*>(sGi + pv.grid);
+  for (int i = threadIdx.x; i < ia.points; i += blockDim.x) {
+    const float* d = ia.D ? ia.D + 3 * i : dparam.v + 3 * i;
+    sD[i] = make_float4(d[0], d[1], d[2], 0.0f);
+  }
+  {
+    const int4* src = reinterpret_cast<const int4*>(ia.pieces);
+    int4* dst = reinterpret_cast<int4*>(sP);
+    for (int i = threadIdx.x; i < 6 * ia.n_pieces; i += blockDim.x) dst[i] = src[i];
+    for (int i = threadIdx.x; i < K; i += blockDim.x) sCol[i] = ia.column[i];
+    const float4* bs = reinterpret_cast<const float4*>(pv.grid_basis_padded);
+    for (int i = threadIdx.x; i < 3 * pv.grid; i += blockDim.x) sBasis[i] = bs[i];
+    for (int i = threadIdx.x; i < pv.grid; i += blockDim.x) sGi[i] = gi[i];
+    const int* ms = reinterpret_cast<const int*>(ia.column_map);
+    int* md = reinterpret_cast<int*>(sMap);
+    for (int i = threadIdx.x; i < (int)(sizeof(ColumnMap) / 4); i += blockDim.x) md[i] = ms[i];
+  }
   __syncthreads();
+  const int lp = threadIdx.x / LANES, lane = threadIdx.x % LANES;
+  const int n_cols = K0 + sMap->n_extra;
+  for (int group = blockIdx.x; group < ia.groups; group += gridDim.x) {
+    const int base = group * PB;
+    const int p = base + lp;
+    const bool live = p < pv.patches;
 
-  // 1 + 3. Sampling and the constrained fit's centre row.
-  V3 gc = v3(0, 0, 0), nc = v3(0, 0, 0);
-  if (p < pv.patches) {
-    V3 rn[3];
-    for (int k = 0; k < 3; ++k) rn[k] = load3(pv.patch_render_normal + 9 * (long long)p + 3 * k);
-    for (int i = lane; i < K0 + cm.n_extra; i += LANES) {
-      const int k = i < K0 ? i : K0 + cm.extra[i - K0];  // the column
-      float F[3], J[9];
-      sample_inline<C>(pv, sD, sP, pv.patch_samples[(long long)p * K + k], F, J);
-      const V3 x = v3(F[0], F[1], F[2]);
-      const V3 n = deformed_column_normal(pv, k, rn, J);
-      int con = k - K0;
-      if (k < K0) {
-        float m = pv.fit_matrix[kCentre * K + k];
-        gc += m * x;
-        nc += m * n;
-        con = cm.con_of[k];
+    // 1 + 3. Sampling and the constrained fit's centre row over the free columns.
+    V3 gc = v3(0, 0, 0), nc = v3(0, 0, 0);
+    if (live) {
+      V3 rn[3];
+      for (int k = 0; k < 3; ++k) rn[k] = load3(pv.patch_render_normal + 9 * (long long)p + 3 * k);
+      // The sample records are two dependent gathers (column -> sample -> record): each
+      // iteration fetches the next one's while it evaluates its own (the wait for them was
+      // a fifth of the kernel's time).
+      const int* cols = pv.patch_samples + (long long)p * K;
+      auto column = [&](int i) { return i < K0 ? i : K0 + sMap->extra[i - K0]; };
+      float4 pw_next = make_float4(0, 0, 0, 0);
+      uint32_t box_next = 0;
+      if (lane < n_cols) {
+        const int s = cols[column(lane)];
+        pw_next = ia.sample_pw[s];
+        box_next = ia.sample_box[s];
       }
-      if (con >= 0) {
-        float* st = stage[lp][con];
-        store3(st, x);
-        store3(st + 3, n);
-        if (con < 3)
+      for (int i = lane; i < n_cols; i += LANES) {
+        const int k = column(i);
+        const float4 pw = pw_next;
+        const uint32_t box = box_next;
+        if (i + LANES < n_cols) {
+          const int s = cols[column(i + LANES)];
+          pw_next = ia.sample_pw[s];
+          box_next = ia.sample_box[s];
+        }
+        float F[3], J[9];
+        sample_inline<C>(sD, sP, pw, box, F, J);
+        const float4 col = sCol[k];
+        const V3 x = v3(F[0], F[1], F[2]);
+        // deformed_column_normal (stages.hpp) with the column's point from shared memory.
+        const V3 n0 = col.x * rn[0] + col.y * rn[1] + col.z * rn[2];
+        const V3 n = normalized_or(normalized_or(cofactor_apply(J, n0), n0), rn[0]);
+        int con = k - K0;
+        if (k < K0) {
+          gc += col.w * x;
+          nc += col.w * n;
+          con = sMap->con_of[k];
+        }
+        if (con >= 0) {
+          float* st = stage[lp][con];
+          store3(st, x);
+          store3(st + 3, n);
+          if (con < 3)
 #pragma unroll
-          for (int q = 0; q < 9; ++q) corner_jac[lp][con][q] = J[q];
+            for (int q = 0; q < 9; ++q) corner_jac[lp][con][q] = J[q];
+        }
       }
     }
-  }
 #pragma unroll
-  for (int off = 1; off < LANES; off <<= 1) {
-    gc.x += __shfl_xor_sync(0xffffffffu, gc.x, off);
-    gc.y += __shfl_xor_sync(0xffffffffu, gc.y, off);
-    gc.z += __shfl_xor_sync(0xffffffffu, gc.z, off);
-    nc.x += __shfl_xor_sync(0xffffffffu, nc.x, off);
-    nc.y += __shfl_xor_sync(0xffffffffu, nc.y, off);
-    nc.z += __shfl_xor_sync(0xffffffffu, nc.z, off);
-  }
-  __syncthreads();  // stage, corner_jac written
-  if (p < pv.patches) {
-    // 3. The boundary rows and the rest of the centre row from the constraint columns.
-    for (int j = lane; j < 60; j += LANES) {
-      const int r = j / 6, c = j - 6 * r;
-      float acc = 0.0f;
-      if (r == kCentre) acc = c == 0 ? gc.x : c == 1 ? gc.y : c == 2 ? gc.z : c == 3 ? nc.x : c == 4 ? nc.y : nc.z;
-#pragma unroll
-      for (int q = 0; q < 9; ++q) acc += mcon[r][q] * stage[lp][q][c];
-      ctrl[lp][c / 3][3 * r + c % 3] = acc;
+    for (int off = 1; off < LANES; off <<= 1) {
+      gc.x += __shfl_xor_sync(0xffffffffu, gc.x, off);
+      gc.y += __shfl_xor_sync(0xffffffffu, gc.y, off);
+      gc.z += __shfl_xor_sync(0xffffffffu, gc.z, off);
+      nc.x += __shfl_xor_sync(0xffffffffu, nc.x, off);
+      nc.y += __shfl_xor_sync(0xffffffffu, nc.y, off);
+      nc.z += __shfl_xor_sync(0xffffffffu, nc.z, off);
     }
-    // 2. Edge k of the patch (corner k -> k + 1) from its own constraint columns: corners are
-    // columns 0-2, the points at 1/3 and 2/3 from corner k are columns 3 + 2k and 4 + 2k
-    // (plan/fit_matrix.hpp), in the edge's own a -> b order as adjust_edge has them.
-    if (lane < 3) {
-      const int k = lane, k1 = (k + 1) % 3, e = pv.patch_edge[3 * p + k];
+    __syncwarp();  // a patch's lanes share a warp: its stage and corner_jac are written
+    if (live && lane < 3) {
+      // 3. Component c of the normal patch (all rows), of the fitted centre and of the
+      // fitted edge control points' sum, from the constraint columns.
+      const int c = lane;
+      float xs[9], ns[9];
+#pragma unroll
+      for (int q = 0; q < 9; ++q) xs[q] = stage[lp][q][c], ns[q] = stage[lp][q][3 + c];
+      const float gcc = c == 0 ? gc.x : c == 1 ? gc.y : gc.z, ncc = c == 0 ? nc.x : c == 1 ? nc.y : nc.z;
+#pragma unroll
+      for (int r = 0; r < 10; ++r) {
+        float acc = r == kCentre ? ncc : 0.0f;
+#pragma unroll
+        for (int q = 0; q < 9; ++q) acc += ia.mrow[r][q] * ns[q];
+        ctrl[lp][1][3 * r + c] = acc;
+      }
+      float cen = gcc, esum = 0.0f;
+#pragma unroll
+      for (int q = 0; q < 9; ++q) {
+        cen += ia.mrow[kCentre][q] * xs[q];
+        esum += ia.mrow[10][q] * xs[q];
+      }
+      geo[lp][0][c] = cen;
+      geo[lp][1][c] = esum;
+      // 2. Edge k = c of the patch (corner k -> k + 1) from its own constraint columns:
+      // corners are columns 0-2, the points at 1/3 and 2/3 from corner k are columns 3 + 2k
+      // and 4 + 2k (plan/fit_matrix.hpp), in the edge's own a -> b order as adjust_edge has
+      // them. Both patches of an edge evaluate the same samples with the same instructions:
+      // bitwise the same edge control points, a watertight surface.
+      const int k = c, k1 = (k + 1) % 3, e = pv.patch_edge[3 * p + k];
       const bool rev = pv.patch_edge_reversed[3 * p + k];
       const int ka = rev ? k1 : k, kb = rev ? k : k1;
       const int q1 = rev ? 4 + 2 * k : 3 + 2 * k, q2 = rev ? 3 + 2 * k : 4 + 2 * k;
-      V3 c[2];
+      V3 cp[2];
       edge_control_points(pv, e, load3(stage[lp][ka]), load3(stage[lp][kb]), load3(stage[lp][q1]),
-                          load3(stage[lp][q2]), corner_jac[lp][ka], corner_jac[lp][kb], c);
-      store3(edge_cp[lp][k][0], rev ? c[1] : c[0]);
-      store3(edge_cp[lp][k][1], rev ? c[0] : c[1]);
+                          load3(stage[lp][q2]), corner_jac[lp][ka], corner_jac[lp][kb], cp);
+      store3(edge_cp[lp][k][0], rev ? cp[1] : cp[0]);
+      store3(edge_cp[lp][k][1], rev ? cp[0] : cp[1]);
+    } else if (live) {
+      uint8_t f = owns[p];
+      for (int k = 0; k < 3; ++k) {
+        sedge[lp][k] = pv.patch_edge[3 * p + k];
+        f |= uint8_t(pv.patch_edge_reversed[3 * p + k] ? 8u << k : 0u);
+      }
+      sflags[lp] = f;
+      srender[lp] = prender[p];
     }
+    __syncwarp();
+    if (live && lane == 0) {
+      // finish_patch_from (stages.hpp): exact corners, adjusted edges, the centre moved with them.
+      const uint8_t mine = corner_owns[p];
+      V3 adjusted = v3(0, 0, 0);
+      for (int k = 0; k < 3; ++k) {
+        const V3 corner = load3(stage[lp][k]);
+        const V3 c0 = load3(edge_cp[lp][k][0]), c1 = load3(edge_cp[lp][k][1]);
+        store3(ctrl[lp][0] + 3 * k, corner);
+        store3(ctrl[lp][0] + 3 * edge_control_index(k, false), c0);
+        store3(ctrl[lp][0] + 3 * edge_control_index(k, true), c1);
+        adjusted += c0 + c1;
+        if ((mine >> k) & 1) store3(fv.positions + 3 * (long long)pv.patch_vertex[3 * p + k], corner);
+      }
+      const V3 centre = load3(geo[lp][0]) + 0.25f * (adjusted - load3(geo[lp][1]));
+      store3(ctrl[lp][0] + 3 * kCentre, centre);
+    }
+    __syncthreads();
+    // 4. Tessellation.
+    tessellate_block<PB, LANES>(pv, fv, sGi, reinterpret_cast<const float*>(sBasis), ctrl, sedge, sflags, srender,
+                                base, render_shift, normals);
+    __syncthreads();  // the next group overwrites the block's tables
   }
-  __syncwarp();
-  if (p < pv.patches && lane == 0) {
-    V3 g[10], corner[3], cp[3][2];
-#pragma unroll
-    for (int r = 0; r < 10; ++r) g[r] = load3(ctrl[lp][0] + 3 * r);
-    const uint8_t mine = corner_owns[p];
-    for (int k = 0; k < 3; ++k) {
-      corner[k] = load3(stage[lp][k]);
-      cp[k][0] = load3(edge_cp[lp][k][0]);
-      cp[k][1] = load3(edge_cp[lp][k][1]);
-      if ((mine >> k) & 1) store3(fv.positions + 3 * (long long)pv.patch_vertex[3 * p + k], corner[k]);
-    }
-    finish_patch_from(corner, cp, g);
-#pragma unroll
-    for (int r = 0; r < 10; ++r) store3(ctrl[lp][0] + 3 * r, g[r]);
-    uint8_t f = owns[p];
-    for (int k = 0; k < 3; ++k) {
-      sedge[lp][k] = pv.patch_edge[3 * p + k];
-      f |= uint8_t(pv.patch_edge_reversed[3 * p + k] ? 8u << k : 0u);
-    }
-    sflags[lp] = f;
-    srender[lp] = prender[p];
-  }
-  __syncthreads();
-  // 4. Tessellation.
-  tessellate_block<PB, LANES>(pv, fv, gi, ctrl, sedge, sflags, srender, base, render_shift, normals);
 }
 
 // Output positions of the sub-vertices that no patch has (loose input vertices), which the

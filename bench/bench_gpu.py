@@ -65,7 +65,9 @@ STAGED = ("SMOOTHFFD_FUSED_FIT", "staged")
 # default is the inline kernel (inline_kernels.cuh: samples evaluated inside the fit, edges
 # adjusted by each patch); "staged" is the previous default (sampling kernel + edge kernel +
 # fit from the sample buffers).
-VARIANTS = [(("SMOOTHFFD_FUSED_BLOCKS", "4"),), (("SMOOTHFFD_FUSED_BLOCKS", "6"),), (STAGED,),
+VARIANTS = [(("SMOOTHFFD_FUSED_BLOCKS", "5"),), (("SMOOTHFFD_FUSED_BLOCKS", "6"),), (("SMOOTHFFD_INLINE_BOXES", "0"),),
+            (("SMOOTHFFD_INLINE_BOXES", "0"), ("SMOOTHFFD_FUSED_BLOCKS", "4")),
+            (STAGED,),
             (STAGED, ("SMOOTHFFD_FUSED_BLOCKS", "4")), (REGS,)]
 
 
@@ -82,6 +84,7 @@ def gpu_case(name, P, F, N, lat, level, iters, cpu_reps, log, variants=False):
     ev = _core.CudaEvaluator(plan, "fused")
     row["output_bytes"] = ev.output_bytes
     row["device_bytes"] = ev.device_bytes
+    row["fused_kernel"] = ev.fused_kernel
     for path in ("fused", "cublas"):
         ev.path = path
         row[path] = ev.benchmark(vals, iters)

@@ -160,8 +160,10 @@ def test_levels(level, path):
 REGS = ("SMOOTHFFD_FUSED_FIT", "regs")
 STAGED = ("SMOOTHFFD_FUSED_FIT", "staged")
 _S, _L, _B = "SMOOTHFFD_SAMPLE_BLOCKS", "SMOOTHFFD_FUSED_LANES", "SMOOTHFFD_FUSED_BLOCKS"
-# Inline (default) kernel with other register caps, then every switch of the staged kernels.
-VARIANTS = [((_B, "4"),), ((_B, "6"),), (STAGED,)] + [(STAGED,) + v for v in [
+# Inline (default) kernel with other register caps and with the per-sample weights instead
+# of the box polynomials, then every switch of the staged kernels.
+VARIANTS = [((_B, "5"),), ((_B, "6"),), (("SMOOTHFFD_INLINE_BOXES", "0"),), (("SMOOTHFFD_INLINE_BOXES", "0"), (_B, "4")),
+            (STAGED,)] + [(STAGED,) + v for v in [
     ((_S, "1"),), ((_S, "2"),), ((_S, "3"),), ((_S, "4"),), ((_S, "fixed"),), ((_L, "4"),), ((_L, "16"),),
     ((_B, "4"),), ((_L, "4"), (_B, "1")), ((_L, "4"), (_B, "5"))]] + [
     (REGS,), (REGS, (_B, "3")), (REGS, (_B, "4")), (REGS, (_L, "1")), (REGS, (_L, "8"))]
@@ -313,12 +315,16 @@ def test_upsampling_baseline_matches_lattice():
 
 
 @pytest.mark.skipif(os.environ.get("SMOOTHFFD_SANITIZER") != "1", reason="run under compute-sanitizer only")
-def test_sanitizer_subset():
-    """Small mixed workload for compute-sanitizer (both paths, copy back, baseline)."""
+def test_sanitizer_subset(monkeypatch):
+    """Small mixed workload for compute-sanitizer (both paths, copy back, baseline; the inline
+    kernel with box polynomials and with per-sample weights)."""
     rng = np.random.default_rng(0)
     for path in PATHS:
         check(cube(sharp=True), bspline(rng, degree=(1, 2, 3)), level=3, path=path)
         check(icosphere(1), blender(rng, ("CATMULL_ROM", "LINEAR", "BSPLINE")), level=4, path=path)
+        check(icosphere(1), bspline(rng), level=5, path=path)
+    monkeypatch.setenv("SMOOTHFFD_INLINE_BOXES", "0")
+    check(icosphere(1), bspline(rng), level=5, path="fused")
 
 
 @pytest.mark.parametrize("path", PATHS)
@@ -352,6 +358,27 @@ def test_high_level_falls_back_to_staged_kernels():
     times = _core.CudaEvaluator(plan, "fused").evaluate_device(
         np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32))
     assert "sampling" in times and "sample_fit_tessellate" not in times
+
+
+def test_fused_kernel_choice(monkeypatch):
+    """The inline kernel evaluates samples from box polynomials where the boxes that hold
+    samples fit in shared memory (a 5x5x5 lattice of degree 2), from per-sample weights where
+    they do not (a 9x8x7 lattice: too many boxes) or when asked, and the staged kernels beyond
+    4 terms an axis."""
+    rng = np.random.default_rng(81)
+    mesh = icosphere(2)
+
+    def kernel(lat):
+        plan = smoothffd.Deformer(mesh, lat, level=4, device="cpu").plan
+        return _core.CudaEvaluator(plan, "fused").fused_kernel
+
+    assert kernel(bspline(rng)) == "inline (boxes)"
+    assert kernel(bspline(rng, shape=(9, 8, 7), amount=0.03)) == "inline (weights)"
+    assert kernel(bspline(rng, degree=(5, 4, 2), shape=(7, 6, 5))) == "staged"
+    monkeypatch.setenv("SMOOTHFFD_INLINE_BOXES", "0")
+    assert kernel(bspline(rng)) == "inline (weights)"
+    monkeypatch.setenv("SMOOTHFFD_FUSED_FIT", "staged")
+    assert kernel(bspline(rng)) == "staged"
 
 
 def test_small_lattice_inline_needs_no_upload():

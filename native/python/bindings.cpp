@@ -257,6 +257,7 @@ PYBIND11_MODULE(_core, m) {
                     "'fused' or 'cublas' (default: $SMOOTHFFD_CUDA_PATH, else fused)")
       .def_property_readonly("output_bytes", &CudaEvaluator::output_bytes)
       .def_property_readonly("device_bytes", &CudaEvaluator::device_bytes)
+      .def_property_readonly("fused_kernel", &CudaEvaluator::fused_kernel)
       .def("evaluate",
            [](CudaEvaluator& ev, Arr<float> D, py::object positions, py::object corner_normals) {
              return run_evaluator(ev, D, positions, corner_normals);

@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
+#include <unordered_map>
 
 #include "smoothffd/core/parallel.hpp"
 #include "smoothffd/eval/stages.hpp"
@@ -157,6 +158,9 @@ __device__ __forceinline__ int div_small(int j, int d, float inv) {
   return q;
 }
 
+// Shared floats tessellate_block needs for its coalesced stores: a warp's 2 x 96.
+__host__ __device__ constexpr int tess_staging_floats(int threads) { return threads / 32 * 2 * 96; }
+
 // Control points of a patch in the fused kernels' shared memory: 30 floats padded to 32, so
 // that tessellation reads them as eight 16-byte vectors.
 constexpr int kCtrlStride = 32;
@@ -287,16 +291,17 @@ __global__ void k_edge(PlanView pv, FrameView fv) {
 
 // Tessellation of a block's PB fitted patches from shared memory, one thread a (patch, grid
 // point): positions of the output vertices the patch owns, normals of its render vertices.
-// gi and basis (PlanView::grid_basis_padded): global or shared copies. Every thread of the
-// block must call it (it synchronizes the block once).
+// gi and basis (PlanView::grid_basis_padded): global or shared copies. staging: shared
+// memory for store3_coalesced, kTessStaging floats (the caller lends a table it no longer
+// needs). Every thread of the block must call it (it synchronizes the block once).
 template <int PB, int LANES>
 __device__ __forceinline__ void tessellate_block(const PlanView& pv, const FrameView& fv, const GridInfo* __restrict__ gi,
                                                  const float* __restrict__ basis, const float (*ctrl)[2][kCtrlStride], const int (*sedge)[3],
                                                  const uint8_t* sflags, const PatchRender* srender, int base,
-                                                 long long render_shift, float* __restrict__ normals) {
+                                                 long long render_shift, float* __restrict__ normals, float* staging) {
   constexpr int kWarps = PB * LANES / 32;
-  __shared__ float fallback[PB][3];         // unit_patch_normal's fallback, once a patch
-  __shared__ float out_buf[kWarps][2][96];  // store3_coalesced's staging, a warp's slice
+  __shared__ float fallback[PB][3];  // unit_patch_normal's fallback, once a patch
+  float(*out_buf)[2][96] = reinterpret_cast<float(*)[2][96]>(staging);
   const int G = pv.grid, L = pv.level;
   const int np = min(PB, pv.patches - base);
   const long long interior0 = pv.sub_vertices + (long long)pv.edges * (L - 1);
@@ -413,8 +418,9 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     srender[lp] = prender[p];
   }
   __syncthreads();
+  __shared__ float staging[tess_staging_floats(PB * LANES)];
   tessellate_block<PB, LANES>(pv, fv, gi, pv.grid_basis_padded, ctrl, sedge, sflags, srender, base, render_shift,
-                              normals);
+                              normals, staging);
 }
 
 // Same fit and tessellation with fewer live registers (the default): the LANES threads of a
@@ -497,8 +503,9 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     srender[lp] = prender[p];
   }
   __syncthreads();
+  __shared__ float staging[tess_staging_floats(PB * LANES)];
   tessellate_block<PB, LANES>(pv, fv, gi, pv.grid_basis_padded, ctrl, sedge, sflags, srender, base, render_shift,
-                              normals);
+                              normals, staging);
 }
 
 #include "smoothffd/cuda/inline_kernels.cuh"
@@ -745,6 +752,7 @@ struct CudaEvaluator::Impl {
   // fit in shared memory and the constraint columns are where k_inline expects them.
   bool inline_ok = false;
   InlineArgs inline_args{};
+  int box_env = -1;  // SMOOTHFFD_INLINE_BOXES=0: the per-sample weights even where boxes fit
   std::vector<int> inline_grid;  // resident blocks of each k_inline instantiation (persistent grid)
   uint8_t* corner_owns = nullptr;  // P: bit k, the patch writes corner k's output position
   int* loose = nullptr;            // sub-vertices in no patch
@@ -788,9 +796,29 @@ struct CudaEvaluator::Impl {
     ia = InlineArgs{};
     ia.points = points;
     ia.n_pieces = n_pieces;
-    inline_ok = max_terms <= 4 && n_pieces < 1024 && ia.shared_bytes(p.columns, p.grid) <= kInlineSharedBytes &&
+    // The boxes that hold samples, numbered in order of first use; box_of[s]: sample s's.
+    std::vector<uint32_t> box_of((size_t)p.samples);
+    std::vector<int4> box_list;
+    {
+      std::unordered_map<uint32_t, uint32_t> index;
+      for (int s = 0; s < p.samples; ++s) {
+        auto it = index.emplace(p.sample_piece[s], (uint32_t)box_list.size());
+        if (it.second) {
+          int b[3];
+          for (int a = 0; a < 3; ++a) b[a] = p.axis_offset[a] + (int)((p.sample_piece[s] >> (10 * a)) & 1023u);
+          box_list.push_back(make_int4(b[0], b[1], b[2], 0));
+        }
+        box_of[s] = it.first->second;
+      }
+    }
+    const int C = max_terms <= 2 ? 2 : max_terms == 3 ? 3 : 4;  // run_inline's kernels
+    ia.boxes = (int)box_list.size();
+    if (ia.shared_bytes(p.columns, p.grid, C) > kInlineSharedBytes || points > kBoxPoints || box_env == 0)
+      ia.boxes = 0;  // the per-sample weights
+    inline_ok = max_terms <= 4 && n_pieces < 1024 && ia.shared_bytes(p.columns, p.grid, C) <= kInlineSharedBytes &&
                 p.columns - 9 <= kMaxInlineGrid && constraint_columns_as_expected(p);
     if (!inline_ok) return;
+    ia.box_list = arena.upload(box_list);
     // Constraint columns that are grid points with the same sample in every patch.
     const int K = p.columns, K0 = K - 9;
     ColumnMap cm{};
@@ -852,14 +880,13 @@ struct CudaEvaluator::Impl {
     ia.pieces = arena.upload(pcs);
     // Per sample: position and weight in one 16-byte record, the pieces as table indices.
     std::vector<float4> pw((size_t)p.samples);
-    std::vector<uint32_t> box((size_t)p.samples);
+    std::vector<uint2> box((size_t)p.samples);
     for (int s = 0; s < p.samples; ++s) {
       pw[s] = make_float4(p.sample_position[3 * (size_t)s], p.sample_position[3 * (size_t)s + 1],
                           p.sample_position[3 * (size_t)s + 2], p.sample_weight[s]);
       uint32_t b = 0;
-      for (int a = 0; a < 3; ++a)
-        b |= uint32_t(p.axis_offset[a] + ((p.sample_piece[s] >> (10 * a)) & 1023u)) << (10 * a);
-      box[s] = b;
+      for (int a = 0; a < 3; ++a) b |= uint32_t(p.axis_offset[a] + ((p.sample_piece[s] >> (10 * a)) & 1023u)) << (10 * a);
+      box[s] = make_uint2(b, box_of[s]);
     }
     ia.sample_pw = arena.upload(pw);
     ia.sample_box = arena.upload(box);
@@ -892,7 +919,15 @@ struct CudaEvaluator::Impl {
   // patches until none is left.
   template <int C, int MINB>
   void launch_inline(int slot, size_t smem, const InlineControls& dp) {
-    auto kern = k_inline<C, 32, 4, MINB>;
+    if (inline_args.boxes > 0)
+      launch_inline_as<C, true, MINB>(2 * slot, smem, dp);
+    else
+      launch_inline_as<C, false, MINB>(2 * slot + 1, smem, dp);
+  }
+
+  template <int C, bool BOXES, int MINB>
+  void launch_inline_as(int slot, size_t smem, const InlineControls& dp) {
+    auto kern = k_inline<C, BOXES, 32, 4, MINB>;
     if (inline_grid.size() <= (size_t)slot) inline_grid.resize(slot + 1, 0);
     if (inline_grid[slot] == 0) {
       int per_sm = 0, sms = 0, dev = 0;
@@ -915,7 +950,7 @@ struct CudaEvaluator::Impl {
   // loose vertices when the mesh has any.
   template <int C, class Mark>
   void run_inline_c(Mark& mark) {
-    const size_t smem = inline_args.shared_bytes(pv.columns, pv.grid);
+    const size_t smem = inline_args.shared_bytes(pv.columns, pv.grid, C);
     InlineControls dp;
     if (inline_params()) std::memcpy(dp.v, h_D.ptr, nD * sizeof(float));
     if (loose_count > 0) {
@@ -926,13 +961,15 @@ struct CudaEvaluator::Impl {
     mark("sample_fit_tessellate");
     if (pv.patches > 0) {
       // 4 lanes a patch, 32 patches a block of 128. For C = 3 the register cap comes from
-      // MINB 5 blocks an SM (the default; measured fastest, docs/benchmarks.md), or 4 or 6
-      // (SMOOTHFFD_FUSED_BLOCKS) for comparison; C = 2 and 4 run MINB 2.
+      // MINB blocks an SM: 4 with box polynomials (128 registers, no spills), 5 with the
+      // per-sample weights (96); measured fastest (docs/benchmarks.md); SMOOTHFFD_FUSED_BLOCKS
+      // = 4, 5 or 6 for comparison. C = 2 and 4 run MINB 2.
+      const int minb = fused_blocks > 0 ? fused_blocks : inline_args.boxes > 0 ? 4 : 5;
       if constexpr (C != 3)
         launch_inline<C, 2>(0, smem, dp);
-      else if (fused_blocks == 4)
+      else if (minb == 4)
         launch_inline<C, 4>(1, smem, dp);
-      else if (fused_blocks == 6)
+      else if (minb == 6)
         launch_inline<C, 6>(2, smem, dp);
       else
         launch_inline<C, 5>(3, smem, dp);
@@ -1071,6 +1108,7 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
   if (const char* b = std::getenv("SMOOTHFFD_SAMPLE_BLOCKS"))
     m.sample_blocks = std::string(b) == "fixed" ? -1 : std::atoi(b);
   if (const char* b = std::getenv("SMOOTHFFD_FUSED_BLOCKS")) m.fused_blocks = std::atoi(b);
+  if (const char* b = std::getenv("SMOOTHFFD_INLINE_BOXES")) m.box_env = std::atoi(b);
   if (const char* ff = std::getenv("SMOOTHFFD_FUSED_FIT"))
     m.fused_fit = std::string(ff) == "regs" ? 1 : std::string(ff) == "staged" ? 0 : -1;
   m.max_terms = 1;
@@ -1166,6 +1204,12 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
 }
 
 CudaEvaluator::~CudaEvaluator() = default;
+
+std::string CudaEvaluator::fused_kernel() const {
+  const Impl& m = *impl_;
+  if (m.fused_fit >= 0 || !m.inline_ok) return "staged";
+  return m.inline_args.boxes > 0 ? "inline (boxes)" : "inline (weights)";
+}
 
 std::string CudaEvaluator::path() const { return impl_->path == kFused ? "fused" : "cublas"; }
 

@@ -1,4 +1,5 @@
-// CUDA evaluator: the plan is uploaded once, each frame uploads only the control values D.
+// CUDA evaluator: the plan is uploaded once, each frame uploads only the control values D
+// (for the inline kernel and up to 256 control points: inside the launch's parameters).
 // The per-element stages are the SFFD_HD functions of eval/stages.hpp, called from kernels.
 //
 // Two paths for the fitting and tessellation products (selected by `path`, or the environment
@@ -8,8 +9,10 @@
 //           (exact corners, adjusted edges, centre), one SGEMM B_q (G x 10) C (10 x 6P)
 //           (Eq. 14), then a kernel that scatters the welded positions and normalizes normals.
 //   fused:  no intermediate matrices. Default ("inline", cuda/inline_kernels.cuh): one
-//           kernel a frame in which each patch evaluates its own samples, fits, adjusts its
-//           edges and tessellates from shared memory. "staged" (SMOOTHFFD_FUSED_FIT=staged,
+//           persistent kernel a frame in which each patch evaluates its own samples (from
+//           the lattice boxes in power form where they fit in shared memory, else from
+//           per-sample weights; fused_kernel() says which), fits, adjusts its edges and
+//           tessellates from shared memory. "staged" (SMOOTHFFD_FUSED_FIT=staged,
 //           and lattices with more than 4 terms an axis): a sampling kernel and an edge
 //           kernel write per-sample and per-edge buffers, then one kernel fits a block of
 //           patches into shared memory and tessellates them straight from there.
@@ -80,6 +83,9 @@ class CudaEvaluator : public Evaluator {
   // Bytes of the compact device output of one frame: 12 (N + R).
   size_t output_bytes() const;
   size_t device_bytes() const;  // device memory held
+  // Which kernels the fused path runs for this plan: "inline (boxes)" (the default where the
+  // lattice boxes fit in shared memory), "inline (weights)", or "staged".
+  std::string fused_kernel() const;
   // Fills the device outputs and intermediates with NaN (tests: every element must be written).
   void poison();
   // Copies of the compact device output: positions (N x 3), render-vertex normals (R x 3).

@@ -6,11 +6,17 @@
 // Why: the staged path (k_sample -> k_edge -> k_fit_tessellate_staged) writes every sample's
 // value and Jacobian (48 bytes) and gathers them back by index for each patch; the fit then
 // waits on those dependent gathers, and the edge kernel is a launch of its own. Here each
-// patch evaluates its 37 columns itself (a sample on an edge is evaluated by both patches,
-// about 2 evaluations a sample), from the control values and axis pieces staged in shared
-// memory, and adjusts its own three edges from its own constraint columns. The two patches of
-// an edge evaluate the same samples with the same instructions, so they compute bitwise the
-// same edge control points and the surface stays watertight, as with one thread an edge.
+// patch evaluates its 37 columns itself (28 evaluations once the constraint columns that are
+// grid points are shared; a sample on an edge is evaluated by both patches, about 1.6
+// evaluations a sample), from tables in shared memory, and adjusts its own three edges from
+// its own constraint columns. The two patches of an edge evaluate the same samples with the
+// same instructions, so they compute bitwise the same edge control points and the surface
+// stays watertight, as with one thread an edge.
+//
+// A sample is evaluated either from the lattice boxes in power form (convert_boxes, once a
+// block; eval_box: three nested Horner schemes) or, where those do not fit in shared memory,
+// from the axis pieces' weights and the tensor contraction (sample_inline). The profile that
+// led here, and the measurements, are in docs/benchmarks.md.
 #pragma once
 
 // Largest lattice whose control values ride in the launch's parameters (3 KB) instead of a
@@ -52,16 +58,25 @@ static_assert(sizeof(ColumnMap) == 76, "ColumnMap is staged as 19 words");
 struct InlineArgs {
   const InlinePiece* pieces;
   const float4* sample_pw;      // S: position, vertex weight
-  const uint32_t* sample_box;   // S: the three pieces' indices into `pieces`, 10 bits each
+  const uint2* sample_box;      // S: x the three pieces' indices into `pieces`, 10 bits each; y the box
   const float4* column;         // K: barycentric point, centre-row coefficient (0 for constraint columns)
   const ColumnMap* column_map;
   const float* D;               // control values on the device, or null: from InlineControls
   int points, n_pieces, groups;
+  // The lattice boxes (one piece an axis) that hold samples, in power form, computed in shared
+  // memory by every block from the control values when they fit (boxes > 0), else the
+  // per-sample weights are used. box_list: each box's three pieces (indices into `pieces`).
+  const int4* box_list;
+  int boxes;
   float mrow[11][9];
   // Dynamic shared memory: control values, pieces, columns, the grid's padded basis and
   // GridInfo (G points), the ColumnMap.
-  size_t shared_bytes(int K, int G) const {
-    return 16 * ((size_t)points + 6 * (size_t)n_pieces + (size_t)K + 4 * (size_t)G) + sizeof(ColumnMap);
+  // With boxes the control values are staged in the block's ctrl table (kBoxPoints at most)
+  // only while the boxes are computed.
+  size_t shared_bytes(int K, int G, int C) const {
+    return 16 * ((boxes > 0 ? 0 : (size_t)points) + 6 * (size_t)n_pieces + (size_t)K + 4 * (size_t)G +
+                 (size_t)boxes * C * C * C) +
+           sizeof(ColumnMap);
   }
 };
 
@@ -69,6 +84,7 @@ struct InlineArgs {
 // with the ~27 KB of static shared memory, 4 blocks still fit an SM). Larger lattices (beyond
 // about 1500 control points of degree 2) or levels (beyond about 40) run the staged path.
 constexpr size_t kInlineSharedBytes = 28 * 1024;
+constexpr int kBoxPoints = 512;  // control values that fit k_inline's ctrl table (32 patches)
 
 // F and J at one sample from the shared tables: sample_point (stages.hpp) with the axis
 // pieces in power form, t from the folded map, the tensor contraction of tensor_eval_fixed in
@@ -146,6 +162,150 @@ __device__ __forceinline__ void sample_inline(const float4* __restrict__ D4, con
   }
 }
 
+// The lattice boxes of ia.box_list in power form: the C^3 coefficient vectors
+// A[i][j][k] of F's polynomial part sum A t_u^i t_v^j t_w^k, each the tensor product of the
+// three pieces' weight coefficients with the control values. Computed once a block a frame,
+// so that a sample is three nested Horner schemes (about half the multiply-adds of the basis
+// weights and their contraction).
+template <int C>
+__device__ __forceinline__ void convert_boxes(const InlineArgs& ia, const float4* __restrict__ D4,
+                                              const InlinePiece* __restrict__ pcs, float4* __restrict__ boxes) {
+  // One thread a (box, i, j): T[c] = sum over a, b of the u and v coefficients times the
+  // control values, then A[i][j][k] = sum over c of the w coefficients times T[c] (about a
+  // third of the multiply-adds and loads of one full sum a coefficient).
+  constexpr int C2 = C * C;
+  for (int item = threadIdx.x; item < ia.boxes * C2; item += blockDim.x) {
+    const int box = item / C2, ij = item - box * C2;
+    const int i = ij / C, j = ij - i * C;
+    const int4 b = ia.box_list[box];
+    const InlinePiece& pu = pcs[b.x];
+    const InlinePiece& pv = pcs[b.y];
+    const InlinePiece& pw = pcs[b.z];
+    const int ou[4] = {pu.off.x, pu.off.y, pu.off.z, pu.off.w}, ov[4] = {pv.off.x, pv.off.y, pv.off.z, pv.off.w},
+              ow[4] = {pw.off.x, pw.off.y, pw.off.z, pw.off.w};
+    float T[C][3];
+#pragma unroll
+    for (int c = 0; c < C; ++c) T[c][0] = T[c][1] = T[c][2] = 0.0f;
+#pragma unroll
+    for (int a = 0; a < C; ++a) {
+      const float4 cu4 = pu.coef[a];
+      const float cu = i == 0 ? cu4.x : i == 1 ? cu4.y : i == 2 ? cu4.z : cu4.w;
+#pragma unroll
+      for (int bb = 0; bb < C; ++bb) {
+        const float4 cv4 = pv.coef[bb];
+        const float cuv = cu * (j == 0 ? cv4.x : j == 1 ? cv4.y : j == 2 ? cv4.z : cv4.w);
+        const float4* row = D4 + ou[a] + ov[bb];
+#pragma unroll
+        for (int c = 0; c < C; ++c) {
+          const float4 d = row[ow[c]];
+          T[c][0] += cuv * d.x;
+          T[c][1] += cuv * d.y;
+          T[c][2] += cuv * d.z;
+        }
+      }
+    }
+    float4* out = boxes + (size_t)box * (C * C2) + ij * C;
+#pragma unroll
+    for (int k = 0; k < C; ++k) {
+      float acc[3] = {0, 0, 0};
+#pragma unroll
+      for (int c = 0; c < C; ++c) {
+        const float4 cw4 = pw.coef[c];
+        const float cw = k == 0 ? cw4.x : k == 1 ? cw4.y : k == 2 ? cw4.z : cw4.w;
+#pragma unroll
+        for (int r = 0; r < 3; ++r) acc[r] += cw * T[c][r];
+      }
+      out[k] = make_float4(acc[0], acc[1], acc[2], 0.0f);
+    }
+  }
+}
+
+// Value and the three derivatives (in the pieces' own t) of a box polynomial (convert_boxes):
+// Horner over k (w), then j (v), then i (u), each carrying its derivative along.
+template <int C>
+__device__ __forceinline__ void eval_box(const float4* __restrict__ A, float tu, float tv, float tw, float val[3],
+                                         float gu[3], float gv[3], float gw[3]) {
+#pragma unroll
+  for (int i = C - 1; i >= 0; --i) {
+    float qv[3], qdv[3], qdw[3];
+#pragma unroll
+    for (int j = C - 1; j >= 0; --j) {
+      const float4* a = A + (i * C + j) * C;
+      float v[3], d[3];
+      const float4 top = a[C - 1];
+      v[0] = top.x, v[1] = top.y, v[2] = top.z;
+#pragma unroll
+      for (int k = C - 2; k >= 0; --k) {
+        const float4 ak = a[k];
+        const float c[3] = {ak.x, ak.y, ak.z};
+#pragma unroll
+        for (int r = 0; r < 3; ++r) {
+          d[r] = k == C - 2 ? v[r] : fmaf(d[r], tw, v[r]);
+          v[r] = fmaf(v[r], tw, c[r]);
+        }
+      }
+      if (C == 1)
+#pragma unroll
+        for (int r = 0; r < 3; ++r) d[r] = 0.0f;
+#pragma unroll
+      for (int r = 0; r < 3; ++r) {
+        if (j == C - 1) {
+          qv[r] = v[r];
+          qdw[r] = d[r];
+        } else {
+          qdv[r] = j == C - 2 ? qv[r] : fmaf(qdv[r], tv, qv[r]);
+          qv[r] = fmaf(qv[r], tv, v[r]);
+          qdw[r] = fmaf(qdw[r], tv, d[r]);
+        }
+      }
+    }
+    if (C == 1)
+#pragma unroll
+      for (int r = 0; r < 3; ++r) qdv[r] = 0.0f;
+#pragma unroll
+    for (int r = 0; r < 3; ++r) {
+      if (i == C - 1) {
+        val[r] = qv[r];
+        gv[r] = qdv[r];
+        gw[r] = qdw[r];
+      } else {
+        gu[r] = i == C - 2 ? val[r] : fmaf(gu[r], tu, val[r]);
+        val[r] = fmaf(val[r], tu, qv[r]);
+        gv[r] = fmaf(gv[r], tu, qdv[r]);
+        gw[r] = fmaf(gw[r], tu, qdw[r]);
+      }
+    }
+  }
+  if (C == 1)
+#pragma unroll
+    for (int r = 0; r < 3; ++r) gu[r] = 0.0f;
+}
+
+// F and J at one sample from the box polynomials: sample_inline's result up to rounding.
+template <int C>
+__device__ __forceinline__ void sample_box(const float4* __restrict__ boxes, const InlinePiece* __restrict__ pcs,
+                                           float4 pw, uint2 box, float F[3], float J[9]) {
+  float t[3], m[3][3];
+#pragma unroll
+  for (int a = 0; a < 3; ++a) {
+    const float4 mp = pcs[(box.x >> (10 * a)) & 1023u].map;
+    m[a][0] = mp.x, m[a][1] = mp.y, m[a][2] = mp.z;
+    t[a] = fmaf(mp.x, pw.x, fmaf(mp.y, pw.y, fmaf(mp.z, pw.z, mp.w)));
+  }
+  float val[3], gu[3], gv[3], gw[3];
+  eval_box<C>(boxes + (size_t)box.y * (C * C * C), t[0], t[1], t[2], val, gu, gv, gw);
+  const float p[3] = {pw.x, pw.y, pw.z};
+#pragma unroll
+  for (int r = 0; r < 3; ++r) {
+    F[r] = p[r] + pw.w * val[r];
+#pragma unroll
+    for (int c = 0; c < 3; ++c) {
+      const float g = gu[r] * m[0][c] + gv[r] * m[1][c] + gw[r] * m[2][c];
+      J[3 * r + c] = (r == c ? 1.0f : 0.0f) + pw.w * g;
+    }
+  }
+}
+
 // One kernel a frame, persistent: each block stages the lattice tables once, then takes
 // groups of PB patches (group, group + gridDim.x, ...). LANES threads a patch:
 // 1 + 3. each lane evaluates its share of the columns (sample, Jacobian, deformed
@@ -157,7 +317,7 @@ __device__ __forceinline__ void sample_inline(const float4* __restrict__ D4, con
 // 4. lane 0: finish_patch_from; then the block tessellates its patches.
 // corner_owns[p] bit k: patch p writes the output position of its corner k (each sub-vertex
 // is written by the first patch that has it).
-template <int C, int PB, int LANES, int MINB>
+template <int C, bool BOXES, int PB, int LANES, int MINB>
 __global__ void __launch_bounds__(PB* LANES, MINB)
     k_inline(PlanView pv, FrameView fv, InlineArgs ia, InlineControls dparam, const GridInfo* __restrict__ gi,
              const uint8_t* __restrict__ owns, const uint8_t* __restrict__ corner_owns,
@@ -169,16 +329,19 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
   __shared__ float corner_jac[PB][3][9];  // Jacobians at the corners (constraint columns 0-2)
   __shared__ float edge_cp[PB][3][2][3];  // adjusted edge k: next to corner k, next to corner k+1
   __shared__ float geo[PB][2][3];         // fitted centre, sum of the fitted edge control points
+  __shared__ float rest_normal[PB][9];    // the patch's rest render normals at its corners
   __shared__ int sedge[PB][3];
   __shared__ uint8_t sflags[PB];  // bits 0-2: owns edge k; bits 3-5: edge k reversed
   __shared__ PatchRender srender[PB];
   const int K = pv.columns, K0 = K - 9;
-  float4* sD = lattice_shared;
-  InlinePiece* sP = reinterpret_cast<InlinePiece*>(lattice_shared + ia.points);
-  float4* sCol = lattice_shared + ia.points + 6 * ia.n_pieces;
+  static_assert(sizeof(ctrl) >= 16 * kBoxPoints, "the control values fit in ctrl");
+  float4* sD = BOXES ? reinterpret_cast<float4*>(&ctrl[0][0][0]) : lattice_shared;
+  InlinePiece* sP = reinterpret_cast<InlinePiece*>(lattice_shared + (BOXES ? 0 : ia.points));
+  float4* sCol = reinterpret_cast<float4*>(sP + ia.n_pieces);
   float4* sBasis = sCol + K;  // G x 12 floats: PlanView::grid_basis_padded
   GridInfo* sGi = reinterpret_cast<GridInfo*>(sBasis + 3 * pv.grid);
-  ColumnMap* sMap = reinterpret_cast<ColumnMap*>(sGi + pv.grid);
+  float4* sBox = reinterpret_cast<float4*>(sGi + pv.grid);  // BOXES: boxes x C^3
+  ColumnMap* sMap = reinterpret_cast<ColumnMap*>(sBox + (BOXES ? ia.boxes * C * C * C : 0));
   for (int i = threadIdx.x; i < ia.points; i += blockDim.x) {
     const float* d = ia.D ? ia.D + 3 * i : dparam.v + 3 * i;
     sD[i] = make_float4(d[0], d[1], d[2], 0.0f);
@@ -196,6 +359,10 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     for (int i = threadIdx.x; i < (int)(sizeof(ColumnMap) / 4); i += blockDim.x) md[i] = ms[i];
   }
   __syncthreads();
+  if (BOXES) {
+    convert_boxes<C>(ia, sD, sP, sBox);
+    __syncthreads();  // ctrl (the staged control values) is free again
+  }
   const int lp = threadIdx.x / LANES, lane = threadIdx.x % LANES;
   const int n_cols = K0 + sMap->n_extra;
   for (int group = blockIdx.x; group < ia.groups; group += gridDim.x) {
@@ -205,37 +372,45 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
 
     // 1 + 3. Sampling and the constrained fit's centre row over the free columns.
     V3 gc = v3(0, 0, 0), nc = v3(0, 0, 0);
+    // The rest normals wait in shared memory (registers are the scarce resource here).
+    if (live && lane < 3) store3(rest_normal[lp] + 3 * lane, load3(pv.patch_render_normal + 9 * (long long)p + 3 * lane));
+    __syncwarp();
     if (live) {
-      V3 rn[3];
-      for (int k = 0; k < 3; ++k) rn[k] = load3(pv.patch_render_normal + 9 * (long long)p + 3 * k);
-      // The sample records are two dependent gathers (column -> sample -> record): each
-      // iteration fetches the next one's while it evaluates its own (the wait for them was
-      // a fifth of the kernel's time).
+      // The sample records are two dependent gathers (column -> sample -> record): the
+      // sample index is fetched two iterations ahead, its record one ahead, so that neither
+      // waits (the wait for them was a fifth of the kernel's time).
       const int* cols = pv.patch_samples + (long long)p * K;
       auto column = [&](int i) { return i < K0 ? i : K0 + sMap->extra[i - K0]; };
       float4 pw_next = make_float4(0, 0, 0, 0);
-      uint32_t box_next = 0;
+      uint2 box_next = make_uint2(0, 0);
+      int s_next = 0;
       if (lane < n_cols) {
         const int s = cols[column(lane)];
         pw_next = ia.sample_pw[s];
         box_next = ia.sample_box[s];
       }
+      if (lane + LANES < n_cols) s_next = cols[column(lane + LANES)];
       for (int i = lane; i < n_cols; i += LANES) {
         const int k = column(i);
         const float4 pw = pw_next;
-        const uint32_t box = box_next;
+        const uint2 box = box_next;
         if (i + LANES < n_cols) {
-          const int s = cols[column(i + LANES)];
-          pw_next = ia.sample_pw[s];
-          box_next = ia.sample_box[s];
+          pw_next = ia.sample_pw[s_next];
+          box_next = ia.sample_box[s_next];
         }
+        if (i + 2 * LANES < n_cols) s_next = cols[column(i + 2 * LANES)];
         float F[3], J[9];
-        sample_inline<C>(sD, sP, pw, box, F, J);
+        if (BOXES)
+          sample_box<C>(sBox, sP, pw, box, F, J);
+        else
+          sample_inline<C>(sD, sP, pw, box.x, F, J);
         const float4 col = sCol[k];
         const V3 x = v3(F[0], F[1], F[2]);
         // deformed_column_normal (stages.hpp) with the column's point from shared memory.
-        const V3 n0 = col.x * rn[0] + col.y * rn[1] + col.z * rn[2];
-        const V3 n = normalized_or(normalized_or(cofactor_apply(J, n0), n0), rn[0]);
+        const float* rn = rest_normal[lp];
+        const V3 rn0 = load3(rn);
+        const V3 n0 = col.x * rn0 + col.y * load3(rn + 3) + col.z * load3(rn + 6);
+        const V3 n = normalized_or(normalized_or(cofactor_apply(J, n0), n0), rn0);
         int con = k - K0;
         if (k < K0) {
           gc += col.w * x;
@@ -327,8 +502,9 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     }
     __syncthreads();
     // 4. Tessellation.
+    static_assert(sizeof(stage) >= sizeof(float) * tess_staging_floats(PB * LANES), "staging fits in stage");
     tessellate_block<PB, LANES>(pv, fv, sGi, reinterpret_cast<const float*>(sBasis), ctrl, sedge, sflags, srender,
-                                base, render_shift, normals);
+                                base, render_shift, normals, &stage[0][0][0]);
     __syncthreads();  // the next group overwrites the block's tables
   }
 }

@@ -351,6 +351,20 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
   }
 }
 
+// Patch p's tables for tessellate_block: its edges, the flags (bits 0-2: owns edge k's
+// points, bits 3-5: edge k reversed) and its render-vertex table.
+__device__ __forceinline__ void load_patch_tables(const PlanView& pv, const uint8_t* __restrict__ owns,
+                                                  const PatchRender* __restrict__ prender, int p, int* sedge,
+                                                  uint8_t& sflags, PatchRender& srender) {
+  uint8_t f = owns[p];
+  for (int k = 0; k < 3; ++k) {
+    sedge[k] = pv.patch_edge[3 * p + k];
+    f |= uint8_t(pv.patch_edge_reversed[3 * p + k] ? 8u << k : 0u);
+  }
+  sflags = f;
+  srender = prender[p];
+}
+
 // LANES threads a patch fit it (columns split among them, partial sums combined by warp
 // shuffles) into shared memory; then the block tessellates its PB patches, one thread a
 // (patch, grid point), straight from shared memory.
@@ -409,13 +423,7 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
       store3(ctrl[lp][0] + 3 * r, g[r]);
       store3(ctrl[lp][1] + 3 * r, nn[r]);
     }
-    uint8_t f = owns[p];
-    for (int k = 0; k < 3; ++k) {
-      sedge[lp][k] = pv.patch_edge[3 * p + k];
-      f |= uint8_t(pv.patch_edge_reversed[3 * p + k] ? 8u << k : 0u);
-    }
-    sflags[lp] = f;
-    srender[lp] = prender[p];
+    load_patch_tables(pv, owns, prender, p, sedge[lp], sflags[lp], srender[lp]);
   }
   __syncthreads();
   __shared__ float staging[tess_staging_floats(PB * LANES)];
@@ -494,13 +502,7 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     finish_patch(pv, fv, p, g);
 #pragma unroll
     for (int r = 0; r < 10; ++r) store3(ctrl[lp][0] + 3 * r, g[r]);
-    uint8_t f = owns[p];
-    for (int k = 0; k < 3; ++k) {
-      sedge[lp][k] = pv.patch_edge[3 * p + k];
-      f |= uint8_t(pv.patch_edge_reversed[3 * p + k] ? 8u << k : 0u);
-    }
-    sflags[lp] = f;
-    srender[lp] = prender[p];
+    load_patch_tables(pv, owns, prender, p, sedge[lp], sflags[lp], srender[lp]);
   }
   __syncthreads();
   __shared__ float staging[tess_staging_floats(PB * LANES)];

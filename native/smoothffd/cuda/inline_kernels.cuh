@@ -220,65 +220,58 @@ __device__ __forceinline__ void convert_boxes(const InlineArgs& ia, const float4
   }
 }
 
+// One Horner step of a polynomial and its derivative in t, from the highest power down: step
+// `from_top` 0 starts the value at c, step 1 starts the derivative at the value (what
+// d * t + v gives from d = 0, without the multiply by zero), later steps are both updates.
+__device__ __forceinline__ void horner_step(float& v, float& d, float c, float t, int from_top) {
+  if (from_top == 0) {
+    v = c;
+  } else {
+    d = from_top == 1 ? v : fmaf(d, t, v);
+    v = fmaf(v, t, c);
+  }
+}
+
 // Value and the three derivatives (in the pieces' own t) of a box polynomial (convert_boxes):
-// Horner over k (w), then j (v), then i (u), each carrying its derivative along.
+// Horner over k (w), then j (v), then i (u), each carrying its derivative along; the
+// derivatives along the inner axes are Horner schemes of their own in the outer variable.
 template <int C>
 __device__ __forceinline__ void eval_box(const float4* __restrict__ A, float tu, float tv, float tw, float val[3],
                                          float gu[3], float gv[3], float gw[3]) {
+  float qv[3], qdv[3], qdw[3], v[3], d[3];
+#pragma unroll
+  for (int r = 0; r < 3; ++r) gu[r] = qdv[r] = d[r] = 0.0f;  // C = 1: no derivative steps
 #pragma unroll
   for (int i = C - 1; i >= 0; --i) {
-    float qv[3], qdv[3], qdw[3];
 #pragma unroll
     for (int j = C - 1; j >= 0; --j) {
       const float4* a = A + (i * C + j) * C;
-      float v[3], d[3];
-      const float4 top = a[C - 1];
-      v[0] = top.x, v[1] = top.y, v[2] = top.z;
 #pragma unroll
-      for (int k = C - 2; k >= 0; --k) {
+      for (int k = C - 1; k >= 0; --k) {
         const float4 ak = a[k];
         const float c[3] = {ak.x, ak.y, ak.z};
 #pragma unroll
-        for (int r = 0; r < 3; ++r) {
-          d[r] = k == C - 2 ? v[r] : fmaf(d[r], tw, v[r]);
-          v[r] = fmaf(v[r], tw, c[r]);
-        }
+        for (int r = 0; r < 3; ++r) horner_step(v[r], d[r], c[r], tw, C - 1 - k);
       }
-      if (C == 1)
-#pragma unroll
-        for (int r = 0; r < 3; ++r) d[r] = 0.0f;
 #pragma unroll
       for (int r = 0; r < 3; ++r) {
-        if (j == C - 1) {
-          qv[r] = v[r];
-          qdw[r] = d[r];
-        } else {
-          qdv[r] = j == C - 2 ? qv[r] : fmaf(qdv[r], tv, qv[r]);
-          qv[r] = fmaf(qv[r], tv, v[r]);
-          qdw[r] = fmaf(qdw[r], tv, d[r]);
-        }
+        horner_step(qv[r], qdv[r], v[r], tv, C - 1 - j);
+        if (j == C - 1) qdw[r] = d[r];
+        else qdw[r] = fmaf(qdw[r], tv, d[r]);
       }
     }
-    if (C == 1)
-#pragma unroll
-      for (int r = 0; r < 3; ++r) qdv[r] = 0.0f;
 #pragma unroll
     for (int r = 0; r < 3; ++r) {
+      horner_step(val[r], gu[r], qv[r], tu, C - 1 - i);
       if (i == C - 1) {
-        val[r] = qv[r];
         gv[r] = qdv[r];
         gw[r] = qdw[r];
       } else {
-        gu[r] = i == C - 2 ? val[r] : fmaf(gu[r], tu, val[r]);
-        val[r] = fmaf(val[r], tu, qv[r]);
         gv[r] = fmaf(gv[r], tu, qdv[r]);
         gw[r] = fmaf(gw[r], tu, qdw[r]);
       }
     }
   }
-  if (C == 1)
-#pragma unroll
-    for (int r = 0; r < 3; ++r) gu[r] = 0.0f;
 }
 
 // F and J at one sample from the box polynomials: sample_inline's result up to rounding.
@@ -475,13 +468,7 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
       store3(edge_cp[lp][k][0], rev ? cp[1] : cp[0]);
       store3(edge_cp[lp][k][1], rev ? cp[0] : cp[1]);
     } else if (live) {
-      uint8_t f = owns[p];
-      for (int k = 0; k < 3; ++k) {
-        sedge[lp][k] = pv.patch_edge[3 * p + k];
-        f |= uint8_t(pv.patch_edge_reversed[3 * p + k] ? 8u << k : 0u);
-      }
-      sflags[lp] = f;
-      srender[lp] = prender[p];
+      load_patch_tables(pv, owns, prender, p, sedge[lp], sflags[lp], srender[lp]);
     }
     __syncwarp();
     if (live && lane == 0) {

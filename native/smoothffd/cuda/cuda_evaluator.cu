@@ -351,6 +351,18 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
   }
 }
 
+// Sum of v over the LANES lanes of a patch (a power of two, within one warp), in every lane.
+template <int LANES>
+__device__ __forceinline__ V3 lanes_sum(V3 v) {
+#pragma unroll
+  for (int off = 1; off < LANES; off <<= 1) {
+    v.x += __shfl_xor_sync(0xffffffffu, v.x, off);
+    v.y += __shfl_xor_sync(0xffffffffu, v.y, off);
+    v.z += __shfl_xor_sync(0xffffffffu, v.z, off);
+  }
+  return v;
+}
+
 // Patch p's tables for tessellate_block: its edges, the flags (bits 0-2: owns edge k's
 // points, bits 3-5: edge k reversed) and its render-vertex table.
 __device__ __forceinline__ void load_patch_tables(const PlanView& pv, const uint8_t* __restrict__ owns,
@@ -473,15 +485,8 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
       }
     }
   }
-#pragma unroll
-  for (int off = 1; off < LANES; off <<= 1) {
-    gc.x += __shfl_xor_sync(0xffffffffu, gc.x, off);
-    gc.y += __shfl_xor_sync(0xffffffffu, gc.y, off);
-    gc.z += __shfl_xor_sync(0xffffffffu, gc.z, off);
-    nc.x += __shfl_xor_sync(0xffffffffu, nc.x, off);
-    nc.y += __shfl_xor_sync(0xffffffffu, nc.y, off);
-    nc.z += __shfl_xor_sync(0xffffffffu, nc.z, off);
-  }
+  gc = lanes_sum<LANES>(gc);
+  nc = lanes_sum<LANES>(nc);
   __syncthreads();  // stage and mcon written
   if (p < pv.patches) {
     // Output j = 6 r + c (row r, component c: 0-2 geometry, 3-5 normal), lanes interleaved.

@@ -86,6 +86,22 @@ struct InlineArgs {
 constexpr size_t kInlineSharedBytes = 28 * 1024;
 constexpr int kBoxPoints = 512;  // control values that fit k_inline's ctrl table (32 patches)
 
+// F = p + w value and J = I + w (dF/dt) A', A' = the pieces' maps (rows m[a] = dt_a/dp):
+// compose_deformation (lattice/tensor_eval.hpp) with the derivatives in the pieces' own t.
+__device__ __forceinline__ void compose_inline(float4 pw, const float m[3][3], const float val[3], const float gu[3],
+                                               const float gv[3], const float gw[3], float F[3], float J[9]) {
+  const float p[3] = {pw.x, pw.y, pw.z};
+#pragma unroll
+  for (int r = 0; r < 3; ++r) {
+    F[r] = p[r] + pw.w * val[r];
+#pragma unroll
+    for (int c = 0; c < 3; ++c) {
+      const float g = gu[r] * m[0][c] + gv[r] * m[1][c] + gw[r] * m[2][c];
+      J[3 * r + c] = (r == c ? 1.0f : 0.0f) + pw.w * g;
+    }
+  }
+}
+
 // F and J at one sample from the shared tables: sample_point (stages.hpp) with the axis
 // pieces in power form, t from the folded map, the tensor contraction of tensor_eval_fixed in
 // the same order, and J = I + w (dF/dt) A' with A' = the pieces' maps (dt/dp).
@@ -150,16 +166,7 @@ __device__ __forceinline__ void sample_inline(const float4* __restrict__ D4, con
       gw[r] += w[0][a] * awd[r];
     }
   }
-  const float p[3] = {pw.x, pw.y, pw.z};
-#pragma unroll
-  for (int r = 0; r < 3; ++r) {
-    F[r] = p[r] + pw.w * val[r];
-#pragma unroll
-    for (int c = 0; c < 3; ++c) {
-      const float g = gu[r] * m[0][c] + gv[r] * m[1][c] + gw[r] * m[2][c];
-      J[3 * r + c] = (r == c ? 1.0f : 0.0f) + pw.w * g;
-    }
-  }
+  compose_inline(pw, m, val, gu, gv, gw, F, J);
 }
 
 // The lattice boxes of ia.box_list in power form: the C^3 coefficient vectors
@@ -287,16 +294,7 @@ __device__ __forceinline__ void sample_box(const float4* __restrict__ boxes, con
   }
   float val[3], gu[3], gv[3], gw[3];
   eval_box<C>(boxes + (size_t)box.y * (C * C * C), t[0], t[1], t[2], val, gu, gv, gw);
-  const float p[3] = {pw.x, pw.y, pw.z};
-#pragma unroll
-  for (int r = 0; r < 3; ++r) {
-    F[r] = p[r] + pw.w * val[r];
-#pragma unroll
-    for (int c = 0; c < 3; ++c) {
-      const float g = gu[r] * m[0][c] + gv[r] * m[1][c] + gw[r] * m[2][c];
-      J[3 * r + c] = (r == c ? 1.0f : 0.0f) + pw.w * g;
-    }
-  }
+  compose_inline(pw, m, val, gu, gv, gw, F, J);
 }
 
 // One kernel a frame, persistent: each block stages the lattice tables once, then takes
@@ -420,15 +418,8 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
         }
       }
     }
-#pragma unroll
-    for (int off = 1; off < LANES; off <<= 1) {
-      gc.x += __shfl_xor_sync(0xffffffffu, gc.x, off);
-      gc.y += __shfl_xor_sync(0xffffffffu, gc.y, off);
-      gc.z += __shfl_xor_sync(0xffffffffu, gc.z, off);
-      nc.x += __shfl_xor_sync(0xffffffffu, nc.x, off);
-      nc.y += __shfl_xor_sync(0xffffffffu, nc.y, off);
-      nc.z += __shfl_xor_sync(0xffffffffu, nc.z, off);
-    }
+    gc = lanes_sum<LANES>(gc);
+    nc = lanes_sum<LANES>(nc);
     __syncwarp();  // a patch's lanes share a warp: its stage and corner_jac are written
     if (live && lane < 3) {
       // 3. Component c of the normal patch (all rows), of the fitted centre and of the

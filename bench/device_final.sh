@@ -9,8 +9,4 @@ export PATH="$PATH:/usr/local/cuda/bin" PYTHONPATH="$PWD/python" PYTHONUNBUFFERE
 STEPS="build test bench" BENCH_ARGS="--iters 100" BENCH_TIMEOUT=300 bash bench/device_run.sh 2>&1 | grep -v "^ *Function\|REG:" | tail -45
 timeout 150 python3 -m pytest -q tests --ignore=tests/test_blender.py --ignore=tests/blender > "$OUT/suite.log" 2>&1
 echo "whole suite rc=$?"; tail -3 "$OUT/suite.log"
-for tool in memcheck racecheck; do
-  SMOOTHFFD_SANITIZER=1 timeout 120 compute-sanitizer --tool $tool --error-exitcode 9 \
-    python3 -m pytest -q -x tests/test_cuda.py -k "sanitizer_subset" > "$OUT/$tool.log" 2>&1
-  echo "compute-sanitizer $tool rc=$?"; grep -E "ERROR SUMMARY|RACECHECK SUMMARY|passed|failed|hazard" "$OUT/$tool.log" | head -5
-done
+bash bench/sanitize_device.sh

@@ -291,22 +291,24 @@ __global__ void k_edge(PlanView pv, FrameView fv) {
 
 // Tessellation of a block's PB fitted patches from shared memory, one thread a (patch, grid
 // point): positions of the output vertices the patch owns, normals of its render vertices.
-// gi and basis (PlanView::grid_basis_padded): global or shared copies. staging: shared
-// memory for store3_coalesced, kTessStaging floats (the caller lends a table it no longer
+// gi and basis (PlanView::grid_basis_padded): global or shared copies; ORDERED: both already
+// in the walk order (entry g is grid point gi[g].order of the plan's tables, as k_inline
+// stages them), which takes a dependent load off every point. staging: shared memory for the
+// coalesced stores, tess_staging_floats floats (the caller lends a table it no longer
 // needs). Every thread of the block must call it (it synchronizes the block once).
-template <int PB, int LANES>
+template <int PB, int LANES, bool ORDERED = false>
 __device__ __forceinline__ void tessellate_block(const PlanView& pv, const FrameView& fv, const GridInfo* __restrict__ gi,
                                                  const float* __restrict__ basis, const float (*ctrl)[2][kCtrlStride], const int (*sedge)[3],
                                                  const uint8_t* sflags, const PatchRender* srender, int base,
                                                  long long render_shift, float* __restrict__ normals, float* staging) {
-  constexpr int kWarps = PB * LANES / 32;
+  constexpr int kThreads = PB * LANES, kWarps = kThreads / 32;
   __shared__ float fallback[PB][3];  // unit_patch_normal's fallback, once a patch
   float(*out_buf)[2][96] = reinterpret_cast<float(*)[2][96]>(staging);
   const int G = pv.grid, L = pv.level;
   const int np = min(PB, pv.patches - base);
   const long long interior0 = pv.sub_vertices + (long long)pv.edges * (L - 1);
   const int IG = (L - 1) * (L - 2) / 2, NB = G - IG;
-  for (int q = threadIdx.x; q < np; q += PB * LANES) {
+  for (int q = threadIdx.x; q < np; q += kThreads) {
     const float* cn = ctrl[q][1];
     store3(fallback[q], normalized_or(load3(cn) + load3(cn + 3) + load3(cn + 6), v3(0, 0, 1)));
   }
@@ -314,8 +316,8 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
   // Corners and edge points: one thread a (patch, point), scattered to their owners' slots.
   const int items = np * NB;
   const float inv_nb = 1.0f / (float)NB;
-  for (int i = threadIdx.x; i < items; i += PB * LANES) {
-    int q = div_small(i, NB, inv_nb), gp = gi[i - q * NB].order;
+  for (int i = threadIdx.x; i < items; i += kThreads) {
+    const int q = div_small(i, NB, inv_nb), w = i - q * NB, gp = ORDERED ? w : gi[w].order;
     const float* B = basis + 12 * gp;
     GridInfo t = gi[gp];
     uint8_t f = sflags[q];
@@ -332,22 +334,40 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
     if (o >= 0) store3(fv.positions + 3 * o, x);
   }
   // Interior points: the block's are one contiguous run of output (and render) vertices, so
-  // each warp takes 32 consecutive ones and writes them with coalesced stores.
-  const int n_int = np * IG, warp = threadIdx.x / 32;
+  // each warp takes 32 consecutive ones and writes them with coalesced stores. The thread's
+  // (patch q, interior point jj) advances by a constant step instead of a division a point.
+  const int n_int = np * IG, warp = threadIdx.x / 32, wl = threadIdx.x & 31;
+  if (IG == 0) return;
   const long long o0 = interior0 + (long long)base * IG;
-  const float inv_ig = IG > 0 ? 1.0f / (float)IG : 0.0f;
+  const float inv_ig = 1.0f / (float)IG;
+  const int step_q = div_small(kThreads, IG, inv_ig), step_j = kThreads - step_q * IG;
+  int q = div_small(warp * 32 + wl, IG, inv_ig), jj = warp * 32 + wl - q * IG;
   float* pos = fv.positions + 3 * (o0 + warp * 32);  // the warp's run of 32 vertices
   float* nrm = normals + 3 * (o0 + warp * 32 + render_shift);
-  for (int j0 = warp * 32; j0 < n_int; j0 += kWarps * 32, pos += 96 * kWarps, nrm += 96 * kWarps) {
-    const int j = j0 + (threadIdx.x & 31);
+  float* bx = out_buf[warp][0];
+  float* bn = out_buf[warp][1];
+  for (int j0 = warp * 32; j0 < n_int; j0 += kThreads, pos += 3 * kThreads, nrm += 3 * kThreads) {
     V3 x = v3(0, 0, 0), n = v3(0, 0, 0);
-    if (j < n_int) {
-      const int q = div_small(j, IG, inv_ig), gp = gi[NB + j - q * IG].order;
+    if (j0 + wl < n_int) {
+      const int gp = ORDERED ? NB + jj : gi[NB + jj].order;
       eval_point(basis + 12 * gp, ctrl[q][0], ctrl[q][1], load3(fallback[q]), x, n);
     }
-    const int count = min(32, n_int - j0);
-    store3_coalesced(pos, x, count, out_buf[warp][0]);
-    store3_coalesced(nrm, n, count, out_buf[warp][1]);
+    q += step_q, jj += step_j;
+    if (jj >= IG) jj -= IG, ++q;
+    // store3_coalesced for both fields, without bounds checks when the warp's run is full.
+    store3(bx + 3 * wl, x);
+    store3(bn + 3 * wl, n);
+    __syncwarp();
+    const int n3 = 3 * min(32, n_int - j0);
+    if (n3 == 96) {
+#pragma unroll
+      for (int r = 0; r < 3; ++r) pos[wl + 32 * r] = bx[wl + 32 * r], nrm[wl + 32 * r] = bn[wl + 32 * r];
+    } else {
+#pragma unroll
+      for (int r = 0; r < 3; ++r)
+        if (wl + 32 * r < n3) pos[wl + 32 * r] = bx[wl + 32 * r], nrm[wl + 32 * r] = bn[wl + 32 * r];
+    }
+    __syncwarp();
   }
 }
 

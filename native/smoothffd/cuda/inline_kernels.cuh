@@ -329,7 +329,7 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
   float4* sD = BOXES ? reinterpret_cast<float4*>(&ctrl[0][0][0]) : lattice_shared;
   InlinePiece* sP = reinterpret_cast<InlinePiece*>(lattice_shared + (BOXES ? 0 : ia.points));
   float4* sCol = reinterpret_cast<float4*>(sP + ia.n_pieces);
-  float4* sBasis = sCol + K;  // G x 12 floats: PlanView::grid_basis_padded
+  float4* sBasis = sCol + K;  // G x 12 floats: PlanView::grid_basis_padded, in walk order
   GridInfo* sGi = reinterpret_cast<GridInfo*>(sBasis + 3 * pv.grid);
   float4* sBox = reinterpret_cast<float4*>(sGi + pv.grid);  // BOXES: boxes x C^3
   ColumnMap* sMap = reinterpret_cast<ColumnMap*>(sBox + (BOXES ? ia.boxes * C * C * C : 0));
@@ -343,8 +343,9 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     for (int i = threadIdx.x; i < 6 * ia.n_pieces; i += blockDim.x) dst[i] = src[i];
     for (int i = threadIdx.x; i < K; i += blockDim.x) sCol[i] = ia.column[i];
     const float4* bs = reinterpret_cast<const float4*>(pv.grid_basis_padded);
-    for (int i = threadIdx.x; i < 3 * pv.grid; i += blockDim.x) sBasis[i] = bs[i];
-    for (int i = threadIdx.x; i < pv.grid; i += blockDim.x) sGi[i] = gi[i];
+    // The grid tables in the order tessellate_block walks them (its ORDERED mode).
+    for (int i = threadIdx.x; i < 3 * pv.grid; i += blockDim.x) sBasis[i] = bs[3 * gi[i / 3].order + i % 3];
+    for (int i = threadIdx.x; i < pv.grid; i += blockDim.x) sGi[i] = gi[gi[i].order];
     const int* ms = reinterpret_cast<const int*>(ia.column_map);
     int* md = reinterpret_cast<int*>(sMap);
     for (int i = threadIdx.x; i < (int)(sizeof(ColumnMap) / 4); i += blockDim.x) md[i] = ms[i];
@@ -481,7 +482,7 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     __syncthreads();
     // 4. Tessellation.
     static_assert(sizeof(stage) >= sizeof(float) * tess_staging_floats(PB * LANES), "staging fits in stage");
-    tessellate_block<PB, LANES>(pv, fv, sGi, reinterpret_cast<const float*>(sBasis), ctrl, sedge, sflags, srender,
+    tessellate_block<PB, LANES, true>(pv, fv, sGi, reinterpret_cast<const float*>(sBasis), ctrl, sedge, sflags, srender,
                                 base, render_shift, normals, &stage[0][0][0]);
     __syncthreads();  // the next group overwrites the block's tables
   }

@@ -295,12 +295,19 @@ __global__ void k_edge(PlanView pv, FrameView fv) {
 // in the walk order (entry g is grid point gi[g].order of the plan's tables, as k_inline
 // stages them), which takes a dependent load off every point. staging: shared memory for the
 // coalesced stores, tess_staging_floats floats (the caller lends a table it no longer
-// needs). Every thread of the block must call it (it synchronizes the block once).
-template <int PB, int LANES, bool ORDERED = false>
+// needs). between(): the caller's work between the boundary and the interior points (k_inline
+// fetches the next group's first sample records there). Every thread of the block must call
+// it (it synchronizes the block once).
+struct NoWork {
+  __device__ void operator()() const {}
+};
+
+template <int PB, int LANES, bool ORDERED = false, class Between = NoWork>
 __device__ __forceinline__ void tessellate_block(const PlanView& pv, const FrameView& fv, const GridInfo* __restrict__ gi,
                                                  const float* __restrict__ basis, const float (*ctrl)[2][kCtrlStride], const int (*sedge)[3],
                                                  const uint8_t* sflags, const PatchRender* srender, int base,
-                                                 long long render_shift, float* __restrict__ normals, float* staging) {
+                                                 long long render_shift, float* __restrict__ normals, float* staging,
+                                                 Between between = {}) {
   constexpr int kThreads = PB * LANES, kWarps = kThreads / 32;
   __shared__ float fallback[PB][3];  // unit_patch_normal's fallback, once a patch
   float(*out_buf)[2][96] = reinterpret_cast<float(*)[2][96]>(staging);
@@ -333,6 +340,7 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
     if (r >= 0) store3(normals + 3 * r, n);
     if (o >= 0) store3(fv.positions + 3 * o, x);
   }
+  between();
   // Interior points: the block's are one contiguous run of output (and render) vertices, so
   // each warp takes 32 consecutive ones and writes them with coalesced stores. The thread's
   // (patch q, interior point jj) advances by a constant step instead of a division a point.

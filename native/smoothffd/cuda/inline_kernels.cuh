@@ -351,12 +351,37 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     for (int i = threadIdx.x; i < (int)(sizeof(ColumnMap) / 4); i += blockDim.x) md[i] = ms[i];
   }
   __syncthreads();
+  const int lp = threadIdx.x / LANES, lane = threadIdx.x % LANES;
+  const int n_cols = K0 + sMap->n_extra;
+  auto column = [&](int i) { return i < K0 ? i : K0 + sMap->extra[i - K0]; };
+  // The sample records are two dependent gathers (column -> sample -> record). Within a
+  // group the sample index is fetched two iterations ahead and its record one ahead; the
+  // first two of a group are fetched during the previous group's tessellation (the index
+  // before it, the record between its boundary and interior points), so that no group starts
+  // by waiting for them (that wait was a tenth of the stall samples).
+  float4 pw_next = make_float4(0, 0, 0, 0);
+  uint2 box_next = make_uint2(0, 0);
+  int s_first = 0, s_next = 0;
+  auto fetch_indices = [&](int grp) {
+    const int pp = grp * PB + lp;
+    if (grp < ia.groups && pp < pv.patches) {
+      const int* cols = pv.patch_samples + (long long)pp * K;
+      if (lane < n_cols) s_first = cols[column(lane)];
+      if (lane + LANES < n_cols) s_next = cols[column(lane + LANES)];
+    }
+  };
+  auto fetch_record = [&](int grp) {
+    if (grp < ia.groups && grp * PB + lp < pv.patches && lane < n_cols) {
+      pw_next = ia.sample_pw[s_first];
+      box_next = ia.sample_box[s_first];
+    }
+  };
+  fetch_indices(blockIdx.x);
   if (BOXES) {
     convert_boxes<C>(ia, sD, sP, sBox);
     __syncthreads();  // ctrl (the staged control values) is free again
   }
-  const int lp = threadIdx.x / LANES, lane = threadIdx.x % LANES;
-  const int n_cols = K0 + sMap->n_extra;
+  fetch_record(blockIdx.x);
   for (int group = blockIdx.x; group < ia.groups; group += gridDim.x) {
     const int base = group * PB;
     const int p = base + lp;
@@ -368,20 +393,7 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     if (live && lane < 3) store3(rest_normal[lp] + 3 * lane, load3(pv.patch_render_normal + 9 * (long long)p + 3 * lane));
     __syncwarp();
     if (live) {
-      // The sample records are two dependent gathers (column -> sample -> record): the
-      // sample index is fetched two iterations ahead, its record one ahead, so that neither
-      // waits (the wait for them was a fifth of the kernel's time).
       const int* cols = pv.patch_samples + (long long)p * K;
-      auto column = [&](int i) { return i < K0 ? i : K0 + sMap->extra[i - K0]; };
-      float4 pw_next = make_float4(0, 0, 0, 0);
-      uint2 box_next = make_uint2(0, 0);
-      int s_next = 0;
-      if (lane < n_cols) {
-        const int s = cols[column(lane)];
-        pw_next = ia.sample_pw[s];
-        box_next = ia.sample_box[s];
-      }
-      if (lane + LANES < n_cols) s_next = cols[column(lane + LANES)];
       for (int i = lane; i < n_cols; i += LANES) {
         const int k = column(i);
         const float4 pw = pw_next;
@@ -482,8 +494,10 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     __syncthreads();
     // 4. Tessellation.
     static_assert(sizeof(stage) >= sizeof(float) * tess_staging_floats(PB * LANES), "staging fits in stage");
+    const int next = group + gridDim.x;
+    fetch_indices(next);
     tessellate_block<PB, LANES, true>(pv, fv, sGi, reinterpret_cast<const float*>(sBasis), ctrl, sedge, sflags, srender,
-                                base, render_shift, normals, &stage[0][0][0]);
+                                      base, render_shift, normals, &stage[0][0][0], [&] { fetch_record(next); });
     __syncthreads();  // the next group overwrites the block's tables
   }
 }

@@ -130,25 +130,6 @@ struct GridInfo {
   int kind, which, step, order;
 };
 
-// Writes v (one V3 a lane, lanes [0, count) valid) to dst[0 .. 3 count) with each store
-// instruction covering 32 consecutive floats: the warp's 96 floats go through its slice of
-// shared memory (buf, 96 floats; stride 3 and stride 1 are both free of bank conflicts) and
-// lane l stores floats l, l + 32, l + 64. A plain store3 per lane writes a warp's 384 bytes in
-// three strided passes, each touching every sector partially (three times the L2 write
-// traffic). Every lane of the warp must call it.
-__device__ __forceinline__ void store3_coalesced(float* __restrict__ dst, V3 v, int count, float* buf) {
-  const int lane = threadIdx.x & 31;
-  buf[3 * lane] = v.x;
-  buf[3 * lane + 1] = v.y;
-  buf[3 * lane + 2] = v.z;
-  __syncwarp();
-  const int n = 3 * count;
-#pragma unroll
-  for (int r = 0; r < 3; ++r)
-    if (lane + 32 * r < n) dst[lane + 32 * r] = buf[lane + 32 * r];
-  __syncwarp();
-}
-
 // q = j / d for 0 <= j < 2^22 and 0 < d, inv = 1.0f / d: a float product and one correction
 // instead of the ~20 instructions of an integer division.
 __device__ __forceinline__ int div_small(int j, int d, float inv) {
@@ -308,7 +289,7 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
                                                  const uint8_t* sflags, const PatchRender* srender, int base,
                                                  long long render_shift, float* __restrict__ normals, float* staging,
                                                  Between between = {}) {
-  constexpr int kThreads = PB * LANES, kWarps = kThreads / 32;
+  constexpr int kThreads = PB * LANES;
   __shared__ float fallback[PB][3];  // unit_patch_normal's fallback, once a patch
   float(*out_buf)[2][96] = reinterpret_cast<float(*)[2][96]>(staging);
   const int G = pv.grid, L = pv.level;
@@ -362,7 +343,11 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
     }
     q += step_q, jj += step_j;
     if (jj >= IG) jj -= IG, ++q;
-    // store3_coalesced for both fields, without bounds checks when the warp's run is full.
+    // Coalesced stores: the warp's 96 floats of each field go through its slice of shared
+    // memory (stride 3 and stride 1 are both free of bank conflicts) and lane l stores floats
+    // l, l + 32, l + 64, so each store instruction covers 32 consecutive floats (a plain
+    // store3 a lane touches every sector partially in three passes: three times the L2 write
+    // traffic). No bounds checks when the warp's run is full.
     store3(bx + 3 * wl, x);
     store3(bn + 3 * wl, n);
     __syncwarp();

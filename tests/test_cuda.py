@@ -349,12 +349,13 @@ def test_large_lattice_inline_copies_controls(path):
 
 
 def test_high_level_falls_back_to_staged_kernels():
-    """A level whose tessellation grid does not fit the inline kernel's shared tables (here 30:
-    496 grid points) runs the staged kernels; the result still matches the CPU."""
+    """A level whose tessellation grid does not fit the inline kernel's shared tables (here 45:
+    1081 grid points, 32 bytes each, beyond the 28 KB table) runs the staged kernels; the
+    result still matches the CPU."""
     rng = np.random.default_rng(80)
     lat = bspline(rng)
-    check(icosphere(1), lat, level=30, path="fused")
-    plan = smoothffd.Deformer(icosphere(1), lat, level=30, device="cpu").plan
+    check(icosphere(1), lat, level=45, path="fused")
+    plan = smoothffd.Deformer(icosphere(1), lat, level=45, device="cpu").plan
     times = _core.CudaEvaluator(plan, "fused").evaluate_device(
         np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32))
     assert "sampling" in times and "sample_fit_tessellate" not in times

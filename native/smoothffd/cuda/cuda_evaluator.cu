@@ -146,19 +146,47 @@ __host__ __device__ constexpr int tess_staging_floats(int threads) { return thre
 // that tessellation reads them as eight 16-byte vectors.
 constexpr int kCtrlStride = 32;
 
-// Position x and unit normal n of a patch at a grid point: B, the point's cubic basis (12
-// floats, 16-byte aligned: PlanView::grid_basis_padded), cg and cn its geometry and normal
-// control points (kCtrlStride floats, 16-byte aligned, shared memory), fallback the patch's
-// unit_patch_normal fallback. eval_cubic and unit_patch_normal (stages.hpp) in the same order
-// of operations, with vector loads (3 + 16 instead of 10 + 60 scalar loads a point).
-__device__ __forceinline__ void eval_point(const float* __restrict__ B, const float* cg, const float* cn,
-                                           V3 fallback, V3& x, V3& n) {
-  float b[12], g[kCtrlStride], c[kCtrlStride];
+// One patch's geometry (ctrl[q][0]) and normal (ctrl[q][1]) control points in shared memory.
+// The 16 bytes of padding put consecutive patches 4 banks apart: without them the patches of
+// a warp sit 256 bytes apart, in the same banks, and every per-patch store (one lane a patch)
+// and every vector load that spans two patches (tessellation) is an 8-way / 2-way conflict.
+struct __align__(16) PatchCtrl {
+  float g[kCtrlStride];
+  float n[kCtrlStride];
+  float pad[4];
+  __device__ float* operator[](int i) { return i ? n : g; }
+  __device__ const float* operator[](int i) const { return i ? n : g; }
+};
+
+// The cubic basis of grid point gp (12 floats, the last two unused): BARY, read its
+// barycentric point (a float4 a point, in `basis`) and compute the 10 Bernstein values
+// (cubic_basis, about 20 multiplies); else read them (PlanView::grid_basis_padded layout, 12
+// floats a point, 16-byte aligned). Computing them takes 2 of the 3 vector loads a point off
+// the shared-memory pipe, the busiest unit of the inline kernel.
+template <bool BARY>
+__device__ __forceinline__ void point_basis(const float* __restrict__ basis, int gp, float b[12]) {
+  if (BARY) {
+    const float4 q = reinterpret_cast<const float4*>(basis)[gp];
+    const float bb[3] = {q.x, q.y, q.z};
+    cubic_basis<float>(bb, b);
+    b[10] = b[11] = 0.0f;
+  } else {
 #pragma unroll
-  for (int i = 0; i < 3; ++i) {
-    const float4 q = reinterpret_cast<const float4*>(B)[i];
-    b[4 * i] = q.x, b[4 * i + 1] = q.y, b[4 * i + 2] = q.z, b[4 * i + 3] = q.w;
+    for (int i = 0; i < 3; ++i) {
+      const float4 q = reinterpret_cast<const float4*>(basis + 12 * gp)[i];
+      b[4 * i] = q.x, b[4 * i + 1] = q.y, b[4 * i + 2] = q.z, b[4 * i + 3] = q.w;
+    }
   }
+}
+
+// Position x and unit normal n of a patch at a grid point: b, the point's cubic basis
+// (point_basis), cg and cn its geometry and normal control points (kCtrlStride floats,
+// 16-byte aligned, shared memory), fallback the patch's unit_patch_normal fallback.
+// eval_cubic and unit_patch_normal (stages.hpp) in the same order of operations, with vector
+// loads (16 instead of 60 scalar loads a point).
+__device__ __forceinline__ void eval_point(const float b[12], const float* cg, const float* cn, V3 fallback, V3& x,
+                                           V3& n) {
+  float g[kCtrlStride], c[kCtrlStride];
 #pragma unroll
   for (int i = 0; i < kCtrlStride / 4; ++i) {
     const float4 q = reinterpret_cast<const float4*>(cg)[i], r = reinterpret_cast<const float4*>(cn)[i];
@@ -274,7 +302,8 @@ __global__ void k_edge(PlanView pv, FrameView fv) {
 // point): positions of the output vertices the patch owns, normals of its render vertices.
 // gi and basis (PlanView::grid_basis_padded): global or shared copies; ORDERED: both already
 // in the walk order (entry g is grid point gi[g].order of the plan's tables, as k_inline
-// stages them), which takes a dependent load off every point. staging: shared memory for the
+// stages them), which takes a dependent load off every point, and basis holds each point's
+// barycentric point instead of its basis (point_basis<true>). staging: shared memory for the
 // coalesced stores, tess_staging_floats floats (the caller lends a table it no longer
 // needs). between(): the caller's work between the boundary and the interior points (k_inline
 // fetches the next group's first sample records there). Every thread of the block must call
@@ -285,7 +314,7 @@ struct NoWork {
 
 template <int PB, int LANES, bool ORDERED = false, class Between = NoWork>
 __device__ __forceinline__ void tessellate_block(const PlanView& pv, const FrameView& fv, const GridInfo* __restrict__ gi,
-                                                 const float* __restrict__ basis, const float (*ctrl)[2][kCtrlStride], const int (*sedge)[3],
+                                                 const float* __restrict__ basis, const PatchCtrl* ctrl, const int (*sedge)[3],
                                                  const uint8_t* sflags, const PatchRender* srender, int base,
                                                  long long render_shift, float* __restrict__ normals, float* staging,
                                                  Between between = {}) {
@@ -306,7 +335,6 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
   const float inv_nb = 1.0f / (float)NB;
   for (int i = threadIdx.x; i < items; i += kThreads) {
     const int q = div_small(i, NB, inv_nb), w = i - q * NB, gp = ORDERED ? w : gi[w].order;
-    const float* B = basis + 12 * gp;
     GridInfo t = gi[gp];
     uint8_t f = sflags[q];
     long long o = -1;
@@ -317,6 +345,8 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
     long long r = render_written(pv, srender[q], t, t.kind == 1 && ((f >> (3 + t.which)) & 1), -1, render_shift);
     if (r < 0 && o < 0) continue;
     V3 x, n;
+    float B[12];
+    point_basis<ORDERED>(basis, gp, B);
     eval_point(B, ctrl[q][0], ctrl[q][1], load3(fallback[q]), x, n);
     if (r >= 0) store3(normals + 3 * r, n);
     if (o >= 0) store3(fv.positions + 3 * o, x);
@@ -339,7 +369,9 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
     V3 x = v3(0, 0, 0), n = v3(0, 0, 0);
     if (j0 + wl < n_int) {
       const int gp = ORDERED ? NB + jj : gi[NB + jj].order;
-      eval_point(basis + 12 * gp, ctrl[q][0], ctrl[q][1], load3(fallback[q]), x, n);
+      float B[12];
+      point_basis<ORDERED>(basis, gp, B);
+      eval_point(B, ctrl[q][0], ctrl[q][1], load3(fallback[q]), x, n);
     }
     q += step_q, jj += step_j;
     if (jj >= IG) jj -= IG, ++q;
@@ -399,7 +431,7 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
                      const PatchRender* __restrict__ prender, long long render_shift,
                      float* __restrict__ normals) {
   static_assert(32 % LANES == 0, "lanes of a patch must share a warp");
-  __shared__ __align__(16) float ctrl[PB][2][kCtrlStride];
+  __shared__ PatchCtrl ctrl[PB];
   __shared__ int sedge[PB][3];
   __shared__ uint8_t sflags[PB];  // bits 0-2: owns edge k; bits 3-5: edge k reversed
   __shared__ PatchRender srender[PB];
@@ -469,7 +501,7 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
                             const uint8_t* __restrict__ owns, const PatchRender* __restrict__ prender,
                             long long render_shift, float* __restrict__ normals) {
   static_assert(32 % LANES == 0, "lanes of a patch must share a warp");
-  __shared__ __align__(16) float ctrl[PB][2][kCtrlStride];
+  __shared__ PatchCtrl ctrl[PB];
   __shared__ float stage[PB][9][6];  // constraint column j: x (0-2), n (3-5)
   __shared__ float mcon[10][9];      // M_r's last 9 columns
   __shared__ int sedge[PB][3];
@@ -1204,6 +1236,13 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
   m.prender = a.upload(build_patch_render(p, tt));
   m.render_shift = (long long)p.render_vertices - p.output_vertices;
   m.build_inline_tables(p);
+  {
+    std::vector<float4> bary((size_t)p.grid);
+    for (int g = 0; g < p.grid; ++g)
+      bary[g] = make_float4((float)tt.bary[3 * (size_t)g], (float)tt.bary[3 * (size_t)g + 1],
+                            (float)tt.bary[3 * (size_t)g + 2], 0.0f);
+    m.inline_args.grid_bary = a.upload(bary);
+  }
 
   const long long S = p.samples, E = p.edges, P = p.patches, N = p.output_vertices, G = p.grid;
   m.nD = 3 * (size_t)p.dims[0] * p.dims[1] * p.dims[2];

@@ -68,13 +68,14 @@ struct InlineArgs {
   // per-sample weights are used. box_list: each box's three pieces (indices into `pieces`).
   const int4* box_list;
   int boxes;
+  const float4* grid_bary;  // G: each tessellation grid point's barycentric point (w = 0)
   float mrow[11][9];
-  // Dynamic shared memory: control values, pieces, columns, the grid's padded basis and
+  // Dynamic shared memory: control values, pieces, columns, the grid's barycentric points and
   // GridInfo (G points), the ColumnMap.
   // With boxes the control values are staged in the block's ctrl table (kBoxPoints at most)
   // only while the boxes are computed.
   size_t shared_bytes(int K, int G, int C) const {
-    return 16 * ((boxes > 0 ? 0 : (size_t)points) + 6 * (size_t)n_pieces + (size_t)K + 4 * (size_t)G +
+    return 16 * ((boxes > 0 ? 0 : (size_t)points) + 6 * (size_t)n_pieces + (size_t)K + 2 * (size_t)G +
                  (size_t)boxes * C * C * C) +
            sizeof(ColumnMap);
   }
@@ -315,7 +316,7 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
              const PatchRender* __restrict__ prender, long long render_shift, float* __restrict__ normals) {
   static_assert(LANES == 4, "lanes 0-2 take a component / an edge each, lane 3 the tables");
   extern __shared__ float4 lattice_shared[];
-  __shared__ __align__(16) float ctrl[PB][2][kCtrlStride];
+  __shared__ PatchCtrl ctrl[PB];
   __shared__ float stage[PB][9][6];       // constraint column j: x (0-2), n (3-5)
   __shared__ float corner_jac[PB][3][9];  // Jacobians at the corners (constraint columns 0-2)
   __shared__ float edge_cp[PB][3][2][3];  // adjusted edge k: next to corner k, next to corner k+1
@@ -326,11 +327,11 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
   __shared__ PatchRender srender[PB];
   const int K = pv.columns, K0 = K - 9;
   static_assert(sizeof(ctrl) >= 16 * kBoxPoints, "the control values fit in ctrl");
-  float4* sD = BOXES ? reinterpret_cast<float4*>(&ctrl[0][0][0]) : lattice_shared;
+  float4* sD = BOXES ? reinterpret_cast<float4*>(&ctrl[0]) : lattice_shared;
   InlinePiece* sP = reinterpret_cast<InlinePiece*>(lattice_shared + (BOXES ? 0 : ia.points));
   float4* sCol = reinterpret_cast<float4*>(sP + ia.n_pieces);
-  float4* sBasis = sCol + K;  // G x 12 floats: PlanView::grid_basis_padded, in walk order
-  GridInfo* sGi = reinterpret_cast<GridInfo*>(sBasis + 3 * pv.grid);
+  float4* sBary = sCol + K;  // G barycentric points (ia.grid_bary), in walk order
+  GridInfo* sGi = reinterpret_cast<GridInfo*>(sBary + pv.grid);
   float4* sBox = reinterpret_cast<float4*>(sGi + pv.grid);  // BOXES: boxes x C^3
   ColumnMap* sMap = reinterpret_cast<ColumnMap*>(sBox + (BOXES ? ia.boxes * C * C * C : 0));
   for (int i = threadIdx.x; i < ia.points; i += blockDim.x) {
@@ -342,9 +343,8 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     int4* dst = reinterpret_cast<int4*>(sP);
     for (int i = threadIdx.x; i < 6 * ia.n_pieces; i += blockDim.x) dst[i] = src[i];
     for (int i = threadIdx.x; i < K; i += blockDim.x) sCol[i] = ia.column[i];
-    const float4* bs = reinterpret_cast<const float4*>(pv.grid_basis_padded);
     // The grid tables in the order tessellate_block walks them (its ORDERED mode).
-    for (int i = threadIdx.x; i < 3 * pv.grid; i += blockDim.x) sBasis[i] = bs[3 * gi[i / 3].order + i % 3];
+    for (int i = threadIdx.x; i < pv.grid; i += blockDim.x) sBary[i] = ia.grid_bary[gi[i].order];
     for (int i = threadIdx.x; i < pv.grid; i += blockDim.x) sGi[i] = gi[gi[i].order];
     const int* ms = reinterpret_cast<const int*>(ia.column_map);
     int* md = reinterpret_cast<int*>(sMap);
@@ -496,7 +496,7 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     static_assert(sizeof(stage) >= sizeof(float) * tess_staging_floats(PB * LANES), "staging fits in stage");
     const int next = group + gridDim.x;
     fetch_indices(next);
-    tessellate_block<PB, LANES, true>(pv, fv, sGi, reinterpret_cast<const float*>(sBasis), ctrl, sedge, sflags, srender,
+    tessellate_block<PB, LANES, true>(pv, fv, sGi, reinterpret_cast<const float*>(sBary), ctrl, sedge, sflags, srender,
                                       base, render_shift, normals, &stage[0][0][0], [&] { fetch_record(next); });
     __syncthreads();  // the next group overwrites the block's tables
   }

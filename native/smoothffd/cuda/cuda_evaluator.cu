@@ -4,6 +4,7 @@
 #include "smoothffd/cuda/cuda_evaluator.hpp"
 
 #include <cublas_v2.h>
+#include <cuda_pipeline.h>
 #include <cuda_runtime.h>
 
 #include <algorithm>
@@ -139,8 +140,11 @@ __device__ __forceinline__ int div_small(int j, int d, float inv) {
   return q;
 }
 
-// Shared floats tessellate_block needs for its coalesced stores: a warp's 2 x 96.
-__host__ __device__ constexpr int tess_staging_floats(int threads) { return threads / 32 * 2 * 96; }
+// Shared floats tessellate_block needs for its coalesced stores: a warp's 2 x 96, or 2 x 192
+// in the ORDERED mode (two points a thread, see tessellate_block).
+__host__ __device__ constexpr int tess_staging_floats(int threads, bool ordered = false) {
+  return threads / 32 * 2 * (ordered ? 192 : 96);
+}
 
 // Control points of a patch in the fused kernels' shared memory: 30 floats padded to 32, so
 // that tessellation reads them as eight 16-byte vectors.
@@ -201,6 +205,31 @@ __device__ __forceinline__ void eval_point(const float b[12], const float* cg, c
     nv += b[k] * v3(c[3 * k], c[3 * k + 1], c[3 * k + 2]);
   }
   n = normalized_or(nv, fallback);
+}
+
+// eval_point at two grid points of the same patch (bases ba and bb): one read of the control
+// points for both, the same operations as two eval_point calls.
+__device__ __forceinline__ void eval_point2(const float ba[12], const float bb[12], const float* cg, const float* cn,
+                                            V3 fallback, V3& xa, V3& na, V3& xb, V3& nb) {
+  float g[kCtrlStride], c[kCtrlStride];
+#pragma unroll
+  for (int i = 0; i < kCtrlStride / 4; ++i) {
+    const float4 q = reinterpret_cast<const float4*>(cg)[i], r = reinterpret_cast<const float4*>(cn)[i];
+    g[4 * i] = q.x, g[4 * i + 1] = q.y, g[4 * i + 2] = q.z, g[4 * i + 3] = q.w;
+    c[4 * i] = r.x, c[4 * i + 1] = r.y, c[4 * i + 2] = r.z, c[4 * i + 3] = r.w;
+  }
+  xa = v3(0, 0, 0), xb = v3(0, 0, 0);
+  V3 va = v3(0, 0, 0), vb = v3(0, 0, 0);
+#pragma unroll
+  for (int k = 0; k < 10; ++k) {
+    const V3 gk = v3(g[3 * k], g[3 * k + 1], g[3 * k + 2]), ck = v3(c[3 * k], c[3 * k + 1], c[3 * k + 2]);
+    xa += ba[k] * gk;
+    va += ba[k] * ck;
+    xb += bb[k] * gk;
+    vb += bb[k] * ck;
+  }
+  na = normalized_or(va, fallback);
+  nb = normalized_or(vb, fallback);
 }
 
 // Output vertex of (patch p, grid point g) when p writes it, else -1 (corners are written by
@@ -359,6 +388,46 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
   if (IG == 0) return;
   const long long o0 = interior0 + (long long)base * IG;
   const float inv_ig = 1.0f / (float)IG;
+  if (ORDERED && IG % 2 == 0) {
+    // Two neighbouring points a thread, 64 a warp: with an even count a patch the pair never
+    // straddles two patches, so one read of the control points serves both (a third of the
+    // shared-memory traffic of a point), and the loop's bookkeeping is paid once a pair.
+    float(*out2)[2][192] = reinterpret_cast<float(*)[2][192]>(staging);
+    constexpr int kStep = 2 * kThreads;
+    const int step_q = div_small(kStep, IG, inv_ig), step_j = kStep - step_q * IG;
+    int q = div_small(warp * 64 + 2 * wl, IG, inv_ig), jj = warp * 64 + 2 * wl - q * IG;
+    float* pos = fv.positions + 3 * (o0 + warp * 64);  // the warp's run of 64 vertices
+    float* nrm = normals + 3 * (o0 + warp * 64 + render_shift);
+    float* bx = out2[warp][0];
+    float* bn = out2[warp][1];
+    for (int j0 = warp * 64; j0 < n_int; j0 += kStep, pos += 3 * kStep, nrm += 3 * kStep) {
+      V3 xa = v3(0, 0, 0), na = xa, xb = xa, nb = xa;
+      if (j0 + 2 * wl < n_int) {
+        float ba[12], bb[12];
+        point_basis<true>(basis, NB + jj, ba);
+        point_basis<true>(basis, NB + jj + 1, bb);
+        eval_point2(ba, bb, ctrl[q][0], ctrl[q][1], load3(fallback[q]), xa, na, xb, nb);
+      }
+      q += step_q, jj += step_j;
+      if (jj >= IG) jj -= IG, ++q;
+      store3(bx + 6 * wl, xa);
+      store3(bx + 6 * wl + 3, xb);
+      store3(bn + 6 * wl, na);
+      store3(bn + 6 * wl + 3, nb);
+      __syncwarp();
+      const int n3 = 3 * min(64, n_int - j0);
+      if (n3 == 192) {
+#pragma unroll
+        for (int r = 0; r < 6; ++r) pos[wl + 32 * r] = bx[wl + 32 * r], nrm[wl + 32 * r] = bn[wl + 32 * r];
+      } else {
+#pragma unroll
+        for (int r = 0; r < 6; ++r)
+          if (wl + 32 * r < n3) pos[wl + 32 * r] = bx[wl + 32 * r], nrm[wl + 32 * r] = bn[wl + 32 * r];
+      }
+      __syncwarp();
+    }
+    return;
+  }
   const int step_q = div_small(kThreads, IG, inv_ig), step_j = kThreads - step_q * IG;
   int q = div_small(warp * 32 + wl, IG, inv_ig), jj = warp * 32 + wl - q * IG;
   float* pos = fv.positions + 3 * (o0 + warp * 32);  // the warp's run of 32 vertices
@@ -723,6 +792,52 @@ std::vector<PatchRender> build_patch_render(const Plan& p, const TessellationTab
   return pr;
 }
 
+// The inline kernel's per-patch records (InlinePatch, inline_kernels.cuh). owns: bit k, the
+// patch writes the points of its edge k; corner_owns: bit k, the position of its corner k.
+std::vector<InlinePatch> build_patch_records(const Plan& p, const std::vector<uint8_t>& owns,
+                                             const std::vector<PatchRender>& pr,
+                                             const std::vector<uint8_t>& corner_owns) {
+  std::vector<InlinePatch> rec((size_t)p.patches);
+  for (int q = 0; q < p.patches; ++q) {
+    InlinePatch& r = rec[q];
+    r = InlinePatch{};
+    for (int i = 0; i < 9; ++i) {
+      r.rest[i] = p.patch_render_normal[9 * (size_t)q + i];
+      r.adjust[i] = p.patch_adjust_normal[9 * (size_t)q + i];
+    }
+    uint32_t f = owns[q] | uint32_t(corner_owns[q]) << 8;
+    for (int k = 0; k < 3; ++k) {
+      const int e = p.patch_edge[3 * (size_t)q + k], k1 = (k + 1) % 3;
+      const bool rev = p.patch_edge_reversed[3 * (size_t)q + k] != 0;
+      r.edge[k] = e;
+      r.vertex[k] = p.patch_vertex[3 * (size_t)q + k];
+      const int p0 = p.edge_patch[2 * (size_t)e], p1 = p.edge_patch[2 * (size_t)e + 1];
+      const uint8_t ef = p.edge_flags[e];
+      const bool self1 = p1 == q;
+      uint32_t bits = (ef & kSharpAtA ? 1u : 0u) | (ef & kSharpAtB ? 2u : 0u) | (ef & kNonManifold ? 4u : 0u) |
+                      (p1 >= 0 ? 8u : 0u);
+      if (!(ef & kNonManifold)) {
+        // This patch's corner at each end must be the slot the edge table has for its side.
+        const int ka = rev ? k1 : k, kb = rev ? k : k1, side = self1 ? 1 : 0;
+        if ((self1 ? p1 : p0) != q || p.edge_slot[4 * (size_t)e + 2 * side] != ka ||
+            p.edge_slot[4 * (size_t)e + 2 * side + 1] != kb)
+          throw std::logic_error("CudaEvaluator: unexpected edge table");
+        if (p1 >= 0) {
+          const int other = self1 ? p0 : p1;
+          for (int end = 0; end < 2; ++end) {
+            const int slot = p.edge_slot[4 * (size_t)e + 2 * (1 - side) + end];
+            for (int i = 0; i < 3; ++i) r.nb[k][3 * end + i] = p.patch_adjust_normal[9 * (size_t)other + 3 * slot + i];
+          }
+        }
+      }
+      f |= (rev ? 8u : 0u) << k | bits << (12 + 4 * k) | (self1 ? 1u : 0u) << (24 + k);
+    }
+    r.render = pr[q];
+    r.flags = f;
+  }
+  return rec;
+}
+
 }  // namespace
 
 std::pair<bool, std::string> cuda_status() {
@@ -803,10 +918,10 @@ struct CudaEvaluator::Impl {
   // Inline path tables: usable when the plan has at most 4 terms an axis, its lattice tables
   // fit in shared memory and the constraint columns are where k_inline expects them.
   bool inline_ok = false;
+  int grid_env = 0;  // SMOOTHFFD_INLINE_GRID: k_inline blocks (experiments; 0: as many as fit)
   InlineArgs inline_args{};
   int box_env = -1;  // SMOOTHFFD_INLINE_BOXES=0: the per-sample weights even where boxes fit
   std::vector<int> inline_grid;  // resident blocks of each k_inline instantiation (persistent grid)
-  uint8_t* corner_owns = nullptr;  // P: bit k, the patch writes corner k's output position
   int* loose = nullptr;            // sub-vertices in no patch
   int loose_count = 0;
   float* D = nullptr;
@@ -841,8 +956,9 @@ struct CudaEvaluator::Impl {
   }
 
   // The inline path's tables (InlineArgs, inline_kernels.cuh), corner ownership and loose
-  // vertices, and whether the path applies.
-  void build_inline_tables(const Plan& p) {
+  // vertices, and whether the path applies. owns and pr: the tessellation's per-patch tables.
+  void build_inline_tables(const Plan& p, const TessellationTables& tt, const std::vector<GridInfo>& gi,
+                           const std::vector<uint8_t>& owns, const std::vector<PatchRender>& pr) {
     const int points = p.dims[0] * p.dims[1] * p.dims[2], n_pieces = (int)p.pieces.size();
     InlineArgs& ia = inline_args;
     ia = InlineArgs{};
@@ -955,9 +1071,18 @@ struct CudaEvaluator::Impl {
     std::vector<int> lv;
     for (int v = 0; v < p.sub_vertices; ++v)
       if (!seen[v]) lv.push_back(v);
-    corner_owns = arena.upload(mine);
     loose_count = (int)lv.size();
     if (loose_count) loose = arena.upload(lv);
+    ia.patch_rec = arena.upload(build_patch_records(p, owns, pr, mine));
+    std::vector<float4> bary((size_t)p.grid);
+    std::vector<GridInfo> walk((size_t)p.grid);
+    for (int w = 0; w < p.grid; ++w) {
+      const size_t g = (size_t)gi[w].order;
+      bary[w] = make_float4((float)tt.bary[3 * g], (float)tt.bary[3 * g + 1], (float)tt.bary[3 * g + 2], 0.0f);
+      walk[w] = gi[g];
+    }
+    ia.grid_bary = arena.upload(bary);
+    ia.grid_walk = arena.upload(walk);
   }
 
   void stage_D(const float* Dh) { std::memcpy(h_D.ptr, Dh, nD * sizeof(float)); }
@@ -994,8 +1119,8 @@ struct CudaEvaluator::Impl {
     InlineArgs ia = inline_args;
     ia.groups = (int)blocks_for(pv.patches, 32);
     ia.D = inline_params() ? nullptr : D;
-    const int grid = std::min(ia.groups, inline_grid[slot]);
-    kern<<<grid, 128, smem, stream>>>(pv, fv, ia, dp, grid_info, owns, corner_owns, prender, render_shift, normals);
+    const int grid = std::min(ia.groups, grid_env > 0 ? grid_env : inline_grid[slot]);
+    kern<<<grid, 128, smem, stream>>>(pv, fv, ia, dp, render_shift, normals);
   }
 
   // The inline fused path (see fused_fit and inline_kernels.cuh): one kernel, plus one for
@@ -1161,6 +1286,7 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
     m.sample_blocks = std::string(b) == "fixed" ? -1 : std::atoi(b);
   if (const char* b = std::getenv("SMOOTHFFD_FUSED_BLOCKS")) m.fused_blocks = std::atoi(b);
   if (const char* b = std::getenv("SMOOTHFFD_INLINE_BOXES")) m.box_env = std::atoi(b);
+  if (const char* g = std::getenv("SMOOTHFFD_INLINE_GRID")) m.grid_env = std::atoi(g);
   if (const char* ff = std::getenv("SMOOTHFFD_FUSED_FIT"))
     m.fused_fit = std::string(ff) == "regs" ? 1 : std::string(ff) == "staged" ? 0 : -1;
   m.max_terms = 1;
@@ -1233,16 +1359,10 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
   }
   m.grid_info = a.upload(gi);
   m.owns = a.upload(owns);
-  m.prender = a.upload(build_patch_render(p, tt));
+  const std::vector<PatchRender> render = build_patch_render(p, tt);
+  m.prender = a.upload(render);
   m.render_shift = (long long)p.render_vertices - p.output_vertices;
-  m.build_inline_tables(p);
-  {
-    std::vector<float4> bary((size_t)p.grid);
-    for (int g = 0; g < p.grid; ++g)
-      bary[g] = make_float4((float)tt.bary[3 * (size_t)g], (float)tt.bary[3 * (size_t)g + 1],
-                            (float)tt.bary[3 * (size_t)g + 2], 0.0f);
-    m.inline_args.grid_bary = a.upload(bary);
-  }
+  m.build_inline_tables(p, tt, gi, owns, render);
 
   const long long S = p.samples, E = p.edges, P = p.patches, N = p.output_vertices, G = p.grid;
   m.nD = 3 * (size_t)p.dims[0] * p.dims[1] * p.dims[2];

@@ -50,6 +50,33 @@ struct ColumnMap {
 };
 static_assert(sizeof(ColumnMap) == 76, "ColumnMap is staged as 19 words");
 
+// Everything k_inline reads about one patch besides its samples, in one 208-byte record
+// (CudaEvaluator::Impl::build_inline_tables): a block copies its next group's records into
+// shared memory with asynchronous copies (cp.async) during the current group's tessellation,
+// so that the fit, the edge adjustment and the tessellation tables wait on no global load.
+// Before, those were chains of dependent gathers (patch -> edge -> neighbour -> its normals)
+// at the end of each group's sampling: a tenth of the kernel's stall samples.
+//   rest: the rest render normals at the corners (PlanView::patch_render_normal);
+//   adjust: the rest adjustment normals at the corners (patch_adjust_normal);
+//   nb: per edge k, the adjustment normals of the patch across it at the edge's ends a and b
+//       (edge order), zero on a boundary;
+//   edge, vertex, render: patch_edge, patch_vertex, the PatchRender table;
+//   flags: bits 0-2 owns edge k's points, 3-5 edge k reversed (tessellate_block's sflags),
+//       8-10 writes corner k's position (corner_owns), at 12 + 4k edge k's sharp-at-a (1),
+//       sharp-at-b (2), non-manifold (4) and has-a-second-patch (8) bits, at 24 + k: this
+//       patch is side 1 of edge k (edge_control_points' p1).
+struct __align__(16) InlinePatch {
+  float rest[9];
+  float adjust[9];
+  float nb[3][6];
+  int edge[3];
+  int vertex[3];
+  PatchRender render;
+  uint32_t flags;
+};
+static_assert(sizeof(InlinePatch) == 208 && sizeof(InlinePatch) % 16 == 0, "copied as 16-byte pieces");
+constexpr int kPatchChunks = sizeof(InlinePatch) / 16;
+
 // Everything the inline kernel needs besides the plan view, built once per plan
 // (CudaEvaluator::Impl::build_inline_tables). mrow: M_r's last 9 columns (rows 0-9: the
 // constraint columns' part of each control point) and, row 10, the sum of its six edge rows
@@ -68,24 +95,51 @@ struct InlineArgs {
   // per-sample weights are used. box_list: each box's three pieces (indices into `pieces`).
   const int4* box_list;
   int boxes;
-  const float4* grid_bary;  // G: each tessellation grid point's barycentric point (w = 0)
+  // The tessellation grid in the order tessellate_block walks it (its ORDERED mode: entry g
+  // is grid point gi[g].order of the plan's tables): GridInfo and barycentric point (w = 0).
+  const GridInfo* grid_walk;
+  const float4* grid_bary;
+  const InlinePatch* patch_rec;  // P
   float mrow[11][9];
   // Dynamic shared memory: control values, pieces, columns, the grid's barycentric points and
-  // GridInfo (G points), the ColumnMap.
+  // GridInfo (G points), the boxes and their list, the ColumnMap.
   // With boxes the control values are staged in the block's ctrl table (kBoxPoints at most)
   // only while the boxes are computed.
   size_t shared_bytes(int K, int G, int C) const {
     return 16 * ((boxes > 0 ? 0 : (size_t)points) + 6 * (size_t)n_pieces + (size_t)K + 2 * (size_t)G +
-                 (size_t)boxes * C * C * C) +
+                 (size_t)boxes * (C * C * C + 1)) +
            sizeof(ColumnMap);
   }
 };
 
 // Largest dynamic shared-memory table an inline launch may ask for (the kernels opt in to it;
-// with the ~27 KB of static shared memory, 4 blocks still fit an SM). Larger lattices (beyond
+// with the ~31 KB of static shared memory, 4 blocks fit an SM up to about 25 KB of it, 3
+// beyond: W1 asks for 16 KB). Larger lattices (beyond
 // about 1500 control points of degree 2) or levels (beyond about 40) run the staged path.
 constexpr size_t kInlineSharedBytes = 28 * 1024;
 constexpr int kBoxPoints = 512;  // control values that fit k_inline's ctrl table (32 patches)
+
+
+// edge_control_points (stages.hpp) of patch edge k (ends a, b at corners ka, kb) from the
+// patch's record: the same operations in the same order, so both patches of an edge still
+// compute bitwise the same control points.
+__device__ __forceinline__ void edge_control_points_rec(const InlinePatch& r, int k, int ka, int kb, V3 Pa, V3 Pb,
+                                                        V3 Q1, V3 Q2, const float* Ja, const float* Jb, V3 c[2]) {
+  const float s6 = 1.0f / 6.0f;
+  c[0] = s6 * (-5.0f * Pa + 18.0f * Q1 - 9.0f * Q2 + 2.0f * Pb);
+  c[1] = s6 * (2.0f * Pa - 9.0f * Q1 + 18.0f * Q2 - 5.0f * Pb);
+  const uint32_t ef = (r.flags >> (12 + 4 * k)) & 15u;
+  if (ef & 4u) return;  // non-manifold: left as fitted
+  const bool has1 = (ef & 8u) != 0, self1 = ((r.flags >> (24 + k)) & 1u) != 0;
+  for (int end = 0; end < 2; ++end) {
+    const float* J = end ? Jb : Ja;
+    const V3 own = load3(r.adjust + 3 * (end ? kb : ka)), across = load3(r.nb[k] + 3 * end);
+    const V3 m0 = self1 ? across : own, m1 = self1 ? own : across;  // sides 0 and 1
+    const V3 n0 = normalized_or(cofactor_apply(J, m0), m0);
+    const V3 n1 = has1 ? normalized_or(cofactor_apply(J, m1), m1) : n0;
+    c[end] = adjust_control_point(c[end], end ? Pb : Pa, n0, n1, has1, (ef >> end) & 1u);
+  }
+}
 
 // F = p + w value and J = I + w (dF/dt) A', A' = the pieces' maps (rows m[a] = dt_a/dp):
 // compose_deformation (lattice/tensor_eval.hpp) with the derivatives in the pieces' own t.
@@ -176,7 +230,7 @@ __device__ __forceinline__ void sample_inline(const float4* __restrict__ D4, con
 // so that a sample is three nested Horner schemes (about half the multiply-adds of the basis
 // weights and their contraction).
 template <int C>
-__device__ __forceinline__ void convert_boxes(const InlineArgs& ia, const float4* __restrict__ D4,
+__device__ __forceinline__ void convert_boxes(const InlineArgs& ia, const int4* box_list, const float4* __restrict__ D4,
                                               const InlinePiece* __restrict__ pcs, float4* __restrict__ boxes) {
   // One thread a (box, i, j): T[c] = sum over a, b of the u and v coefficients times the
   // control values, then A[i][j][k] = sum over c of the w coefficients times T[c] (about a
@@ -185,7 +239,7 @@ __device__ __forceinline__ void convert_boxes(const InlineArgs& ia, const float4
   for (int item = threadIdx.x; item < ia.boxes * C2; item += blockDim.x) {
     const int box = item / C2, ij = item - box * C2;
     const int i = ij / C, j = ij - i * C;
-    const int4 b = ia.box_list[box];
+    const int4 b = box_list[box];
     const InlinePiece& pu = pcs[b.x];
     const InlinePiece& pv = pcs[b.y];
     const InlinePiece& pw = pcs[b.z];
@@ -304,24 +358,21 @@ __device__ __forceinline__ void sample_box(const float4* __restrict__ boxes, con
 //    interpolated normal) and accumulates the centre row over the free columns; the 9
 //    constraint columns go to shared memory with the corners' Jacobians;
 // 2. lanes 0-2: component c of the constraint products (M_r's last 9 columns from the launch
-//    parameters), then edge c (see edge_control_points); lane 3 loads the tessellation's
-//    per-patch tables;
-// 4. lane 0: finish_patch_from; then the block tessellates its patches.
-// corner_owns[p] bit k: patch p writes the output position of its corner k (each sub-vertex
-// is written by the first patch that has it).
+//    parameters), then edge c (edge_control_points_rec); lane 3 copies the tessellation's
+//    per-patch tables out of the patch records;
+// 4. lane 0: finish_patch_from; then the block tessellates its patches, and meanwhile the
+//    next group's patch records (InlinePatch) arrive in shared memory (cp.async).
 template <int C, bool BOXES, int PB, int LANES, int MINB>
 __global__ void __launch_bounds__(PB* LANES, MINB)
-    k_inline(PlanView pv, FrameView fv, InlineArgs ia, InlineControls dparam, const GridInfo* __restrict__ gi,
-             const uint8_t* __restrict__ owns, const uint8_t* __restrict__ corner_owns,
-             const PatchRender* __restrict__ prender, long long render_shift, float* __restrict__ normals) {
+    k_inline(PlanView pv, FrameView fv, InlineArgs ia, InlineControls dparam, long long render_shift,
+             float* __restrict__ normals) {
   static_assert(LANES == 4, "lanes 0-2 take a component / an edge each, lane 3 the tables");
   extern __shared__ float4 lattice_shared[];
   __shared__ PatchCtrl ctrl[PB];
   __shared__ float stage[PB][9][6];       // constraint column j: x (0-2), n (3-5)
   __shared__ float corner_jac[PB][3][9];  // Jacobians at the corners (constraint columns 0-2)
-  __shared__ float edge_cp[PB][3][2][3];  // adjusted edge k: next to corner k, next to corner k+1
   __shared__ float geo[PB][2][3];         // fitted centre, sum of the fitted edge control points
-  __shared__ float rest_normal[PB][9];    // the patch's rest render normals at its corners
+  __shared__ InlinePatch srec[PB];        // the group's patch records
   __shared__ int sedge[PB][3];
   __shared__ uint8_t sflags[PB];  // bits 0-2: owns edge k; bits 3-5: edge k reversed
   __shared__ PatchRender srender[PB];
@@ -333,7 +384,50 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
   float4* sBary = sCol + K;  // G barycentric points (ia.grid_bary), in walk order
   GridInfo* sGi = reinterpret_cast<GridInfo*>(sBary + pv.grid);
   float4* sBox = reinterpret_cast<float4*>(sGi + pv.grid);  // BOXES: boxes x C^3
-  ColumnMap* sMap = reinterpret_cast<ColumnMap*>(sBox + (BOXES ? ia.boxes * C * C * C : 0));
+  int4* sBoxList = reinterpret_cast<int4*>(sBox + (BOXES ? ia.boxes * C * C * C : 0));  // BOXES: ia.box_list
+  ColumnMap* sMap = reinterpret_cast<ColumnMap*>(sBoxList + (BOXES ? ia.boxes : 0));
+  // The group's patch records, copied asynchronously (no registers held, no wait until
+  // __pipeline_wait_prior before the barrier that precedes their use).
+  auto fetch_patch_records = [&](int grp) {
+    if (grp < ia.groups) {
+      const int n = kPatchChunks * min(PB, pv.patches - grp * PB);
+      const int4* src = reinterpret_cast<const int4*>(ia.patch_rec + (long long)grp * PB);
+      int4* dst = reinterpret_cast<int4*>(srec);
+      for (int i = threadIdx.x; i < n; i += blockDim.x) __pipeline_memcpy_async(dst + i, src + i, 16);
+    }
+    __pipeline_commit();
+  };
+  fetch_patch_records(blockIdx.x);
+  const int lp = threadIdx.x / LANES, lane = threadIdx.x % LANES;
+  // The sample records are two dependent gathers (column -> sample -> record). Within a
+  // group the sample index is fetched one iteration ahead of its record and the record two
+  // ahead of its evaluation; the first ones of a group are fetched during the previous
+  // group's tessellation (the indices before it, the records between its boundary and
+  // interior points), and those of the first group during the block's prologue, so that no
+  // group starts by waiting for them (that wait was a tenth of the stall samples).
+  float4 pw_a = make_float4(0, 0, 0, 0), pw_b = pw_a;
+  uint2 box_a = make_uint2(0, 0), box_b = box_a;
+  int s_a = 0, s_b = 0, s_c = 0;
+  // map: the ColumnMap, read only for columns past the grid's (in the prologue it is still in
+  // global memory, and the first columns of a patch are always grid columns).
+  auto fetch_indices = [&](int grp, const ColumnMap* map) {
+    const int pp = grp * PB + lp;
+    auto col = [&](int i) { return i < K0 ? i : K0 + map->extra[i - K0]; };
+    auto has = [&](int i) { return i < K0 || i < K0 + map->n_extra; };
+    if (grp < ia.groups && pp < pv.patches) {
+      const int* cols = pv.patch_samples + (long long)pp * K;
+      if (has(lane)) s_a = cols[col(lane)];
+      if (has(lane + LANES)) s_b = cols[col(lane + LANES)];
+      if (has(lane + 2 * LANES)) s_c = cols[col(lane + 2 * LANES)];
+    }
+  };
+  auto fetch_records = [&](int grp, int n) {
+    if (grp < ia.groups && grp * PB + lp < pv.patches) {
+      if (lane < n) pw_a = ia.sample_pw[s_a], box_a = ia.sample_box[s_a];
+      if (lane + LANES < n) pw_b = ia.sample_pw[s_b], box_b = ia.sample_box[s_b];
+    }
+  };
+  fetch_indices(blockIdx.x, ia.column_map);  // from global memory: the tables are not staged yet
   for (int i = threadIdx.x; i < ia.points; i += blockDim.x) {
     const float* d = ia.D ? ia.D + 3 * i : dparam.v + 3 * i;
     sD[i] = make_float4(d[0], d[1], d[2], 0.0f);
@@ -343,45 +437,21 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     int4* dst = reinterpret_cast<int4*>(sP);
     for (int i = threadIdx.x; i < 6 * ia.n_pieces; i += blockDim.x) dst[i] = src[i];
     for (int i = threadIdx.x; i < K; i += blockDim.x) sCol[i] = ia.column[i];
-    // The grid tables in the order tessellate_block walks them (its ORDERED mode).
-    for (int i = threadIdx.x; i < pv.grid; i += blockDim.x) sBary[i] = ia.grid_bary[gi[i].order];
-    for (int i = threadIdx.x; i < pv.grid; i += blockDim.x) sGi[i] = gi[gi[i].order];
+    for (int i = threadIdx.x; i < pv.grid; i += blockDim.x) sBary[i] = ia.grid_bary[i];
+    for (int i = threadIdx.x; i < pv.grid; i += blockDim.x) sGi[i] = ia.grid_walk[i];
+    if (BOXES)
+      for (int i = threadIdx.x; i < ia.boxes; i += blockDim.x) sBoxList[i] = ia.box_list[i];
     const int* ms = reinterpret_cast<const int*>(ia.column_map);
     int* md = reinterpret_cast<int*>(sMap);
     for (int i = threadIdx.x; i < (int)(sizeof(ColumnMap) / 4); i += blockDim.x) md[i] = ms[i];
   }
   __syncthreads();
-  const int lp = threadIdx.x / LANES, lane = threadIdx.x % LANES;
   const int n_cols = K0 + sMap->n_extra;
   auto column = [&](int i) { return i < K0 ? i : K0 + sMap->extra[i - K0]; };
-  // The sample records are two dependent gathers (column -> sample -> record). Within a
-  // group the sample index is fetched two iterations ahead and its record one ahead; the
-  // first two of a group are fetched during the previous group's tessellation (the index
-  // before it, the record between its boundary and interior points), so that no group starts
-  // by waiting for them (that wait was a tenth of the stall samples).
-  float4 pw_next = make_float4(0, 0, 0, 0);
-  uint2 box_next = make_uint2(0, 0);
-  int s_first = 0, s_next = 0;
-  auto fetch_indices = [&](int grp) {
-    const int pp = grp * PB + lp;
-    if (grp < ia.groups && pp < pv.patches) {
-      const int* cols = pv.patch_samples + (long long)pp * K;
-      if (lane < n_cols) s_first = cols[column(lane)];
-      if (lane + LANES < n_cols) s_next = cols[column(lane + LANES)];
-    }
-  };
-  auto fetch_record = [&](int grp) {
-    if (grp < ia.groups && grp * PB + lp < pv.patches && lane < n_cols) {
-      pw_next = ia.sample_pw[s_first];
-      box_next = ia.sample_box[s_first];
-    }
-  };
-  fetch_indices(blockIdx.x);
-  if (BOXES) {
-    convert_boxes<C>(ia, sD, sP, sBox);
-    __syncthreads();  // ctrl (the staged control values) is free again
-  }
-  fetch_record(blockIdx.x);
+  fetch_records(blockIdx.x, n_cols);
+  if (BOXES) convert_boxes<C>(ia, sBoxList, sD, sP, sBox);
+  __pipeline_wait_prior(0);
+  __syncthreads();  // the first records are in; ctrl (the staged control values) is free again
   for (int group = blockIdx.x; group < ia.groups; group += gridDim.x) {
     const int base = group * PB;
     const int p = base + lp;
@@ -389,20 +459,16 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
 
     // 1 + 3. Sampling and the constrained fit's centre row over the free columns.
     V3 gc = v3(0, 0, 0), nc = v3(0, 0, 0);
-    // The rest normals wait in shared memory (registers are the scarce resource here).
-    if (live && lane < 3) store3(rest_normal[lp] + 3 * lane, load3(pv.patch_render_normal + 9 * (long long)p + 3 * lane));
-    __syncwarp();
+    const InlinePatch& rec = srec[lp];
     if (live) {
       const int* cols = pv.patch_samples + (long long)p * K;
       for (int i = lane; i < n_cols; i += LANES) {
         const int k = column(i);
-        const float4 pw = pw_next;
-        const uint2 box = box_next;
-        if (i + LANES < n_cols) {
-          pw_next = ia.sample_pw[s_next];
-          box_next = ia.sample_box[s_next];
-        }
-        if (i + 2 * LANES < n_cols) s_next = cols[column(i + 2 * LANES)];
+        const float4 pw = pw_a;
+        const uint2 box = box_a;
+        pw_a = pw_b, box_a = box_b;
+        if (i + 2 * LANES < n_cols) pw_b = ia.sample_pw[s_c], box_b = ia.sample_box[s_c];
+        if (i + 3 * LANES < n_cols) s_c = cols[column(i + 3 * LANES)];
         float F[3], J[9];
         if (BOXES)
           sample_box<C>(sBox, sP, pw, box, F, J);
@@ -411,7 +477,7 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
         const float4 col = sCol[k];
         const V3 x = v3(F[0], F[1], F[2]);
         // deformed_column_normal (stages.hpp) with the column's point from shared memory.
-        const float* rn = rest_normal[lp];
+        const float* rn = rec.rest;
         const V3 rn0 = load3(rn);
         const V3 n0 = col.x * rn0 + col.y * load3(rn + 3) + col.z * load3(rn + 6);
         const V3 n = normalized_or(normalized_or(cofactor_apply(J, n0), n0), rn0);
@@ -462,43 +528,48 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
       // and 4 + 2k (plan/fit_matrix.hpp), in the edge's own a -> b order as adjust_edge has
       // them. Both patches of an edge evaluate the same samples with the same instructions:
       // bitwise the same edge control points, a watertight surface.
-      const int k = c, k1 = (k + 1) % 3, e = pv.patch_edge[3 * p + k];
-      const bool rev = pv.patch_edge_reversed[3 * p + k];
+      const int k = c, k1 = (k + 1) % 3;
+      const bool rev = (rec.flags >> (3 + k)) & 1u;
       const int ka = rev ? k1 : k, kb = rev ? k : k1;
       const int q1 = rev ? 4 + 2 * k : 3 + 2 * k, q2 = rev ? 3 + 2 * k : 4 + 2 * k;
       V3 cp[2];
-      edge_control_points(pv, e, load3(stage[lp][ka]), load3(stage[lp][kb]), load3(stage[lp][q1]),
-                          load3(stage[lp][q2]), corner_jac[lp][ka], corner_jac[lp][kb], cp);
-      store3(edge_cp[lp][k][0], rev ? cp[1] : cp[0]);
-      store3(edge_cp[lp][k][1], rev ? cp[0] : cp[1]);
+      edge_control_points_rec(rec, k, ka, kb, load3(stage[lp][ka]), load3(stage[lp][kb]), load3(stage[lp][q1]),
+                              load3(stage[lp][q2]), corner_jac[lp][ka], corner_jac[lp][kb], cp);
+      // Straight into the geometry patch (finish_patch_from's corner and edge rows).
+      float* g = ctrl[lp][0];
+      store3(g + 3 * k, load3(stage[lp][k]));
+      store3(g + 3 * edge_control_index(k, false), rev ? cp[1] : cp[0]);
+      store3(g + 3 * edge_control_index(k, true), rev ? cp[0] : cp[1]);
     } else if (live) {
-      load_patch_tables(pv, owns, prender, p, sedge[lp], sflags[lp], srender[lp]);
+      // The tessellation's tables, out of the record (which the next group's overwrites).
+      for (int k = 0; k < 3; ++k) sedge[lp][k] = rec.edge[k];
+      sflags[lp] = uint8_t(rec.flags & 63u);
+      srender[lp] = rec.render;
     }
     __syncwarp();
     if (live && lane == 0) {
-      // finish_patch_from (stages.hpp): exact corners, adjusted edges, the centre moved with them.
-      const uint8_t mine = corner_owns[p];
+      // finish_patch_from (stages.hpp): exact corners, adjusted edges (lanes 0-2 put both
+      // in place), the centre moved with the edges.
+      const uint32_t mine = rec.flags >> 8;
+      float* g = ctrl[lp][0];
       V3 adjusted = v3(0, 0, 0);
       for (int k = 0; k < 3; ++k) {
-        const V3 corner = load3(stage[lp][k]);
-        const V3 c0 = load3(edge_cp[lp][k][0]), c1 = load3(edge_cp[lp][k][1]);
-        store3(ctrl[lp][0] + 3 * k, corner);
-        store3(ctrl[lp][0] + 3 * edge_control_index(k, false), c0);
-        store3(ctrl[lp][0] + 3 * edge_control_index(k, true), c1);
-        adjusted += c0 + c1;
-        if ((mine >> k) & 1) store3(fv.positions + 3 * (long long)pv.patch_vertex[3 * p + k], corner);
+        adjusted += load3(g + 3 * edge_control_index(k, false)) + load3(g + 3 * edge_control_index(k, true));
+        if ((mine >> k) & 1) store3(fv.positions + 3 * (long long)rec.vertex[k], load3(stage[lp][k]));
       }
       const V3 centre = load3(geo[lp][0]) + 0.25f * (adjusted - load3(geo[lp][1]));
-      store3(ctrl[lp][0] + 3 * kCentre, centre);
+      store3(g + 3 * kCentre, centre);
     }
     __syncthreads();
     // 4. Tessellation.
-    static_assert(sizeof(stage) >= sizeof(float) * tess_staging_floats(PB * LANES), "staging fits in stage");
+    static_assert(sizeof(stage) >= sizeof(float) * tess_staging_floats(PB * LANES, true), "staging fits in stage");
     const int next = group + gridDim.x;
-    fetch_indices(next);
+    fetch_patch_records(next);
+    fetch_indices(next, sMap);
     tessellate_block<PB, LANES, true>(pv, fv, sGi, reinterpret_cast<const float*>(sBary), ctrl, sedge, sflags, srender,
-                                      base, render_shift, normals, &stage[0][0][0], [&] { fetch_record(next); });
-    __syncthreads();  // the next group overwrites the block's tables
+                                      base, render_shift, normals, &stage[0][0][0], [&] { fetch_records(next, n_cols); });
+    __pipeline_wait_prior(0);
+    __syncthreads();  // the next group's records are in; it overwrites the block's tables
   }
 }
 

@@ -229,6 +229,23 @@ def test_repeated_frames_and_path_switch():
         assert angles(ng, nc).max() <= 1e-4
 
 
+def test_many_groups_over_frames():
+    """More groups of 32 patches than an H100 keeps resident, so every block of the inline
+    kernel's persistent grid takes several; frames in a row match the CPU."""
+    rng = np.random.default_rng(17)
+    mesh = icosphere(5)
+    plan = smoothffd.Deformer(mesh, bspline(rng), level=3, device="cpu").plan
+    assert plan.patches > 132 * 4 * 32
+    ev = _core.CudaEvaluator(plan, "fused")
+    cpu = _core.CpuEvaluator(plan)
+    for _ in range(3):
+        vals = np.ascontiguousarray(bspline(rng).control_values().reshape(-1, 3), dtype=np.float32)
+        pg, ng, _ = ev.evaluate(vals)
+        pc, nc, _ = cpu.evaluate(vals)
+        assert np.abs(pg - pc).max() <= 1e-5 * SIZE
+        assert angles(ng, nc).max() <= 1e-4
+
+
 def test_env_path(monkeypatch):
     rng = np.random.default_rng(1)
     plan = smoothffd.Deformer(icosphere(1), bspline(rng), level=2, device="cpu").plan

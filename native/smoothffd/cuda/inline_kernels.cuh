@@ -452,6 +452,9 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
   if (BOXES) convert_boxes<C>(ia, sBoxList, sD, sP, sBox);
   __pipeline_wait_prior(0);
   __syncthreads();  // the first records are in; ctrl (the staged control values) is free again
+  // Block b takes groups b, b + gridDim.x, ...: at any time the blocks work on neighbouring
+  // groups, whose samples and tables share cache lines. (Handing out groups from an atomic
+  // counter instead, to even out the SMs' busy time, measured 5% slower: docs/benchmarks.md.)
   for (int group = blockIdx.x; group < ia.groups; group += gridDim.x) {
     const int base = group * PB;
     const int p = base + lp;

@@ -327,6 +327,64 @@ __global__ void k_edge(PlanView pv, FrameView fv) {
 
 // ---------------------------------------------------------------- fused path
 
+// tessellate_block's interior points, PTS consecutive ones a thread (1, or 2 when no pair
+// straddles two patches): each warp takes 32 PTS consecutive points of the block's run and
+// writes them with coalesced stores. The thread's (patch q, interior point jj) advances by a
+// constant step instead of a division a point.
+template <int PTS, int kThreads, bool ORDERED>
+__device__ __forceinline__ void tessellate_interior(const FrameView& fv, const GridInfo* __restrict__ gi,
+                                                    const float* __restrict__ basis, const PatchCtrl* ctrl,
+                                                    const float (*fallback)[3], int n_int, int IG, int NB,
+                                                    long long o0, long long render_shift,
+                                                    float* __restrict__ normals, float* staging) {
+  constexpr int kRun = 32 * PTS, kStep = PTS * kThreads, kFloats = 3 * kRun;
+  const int warp = threadIdx.x / 32, wl = threadIdx.x & 31;
+  const float inv_ig = 1.0f / (float)IG;
+  const int step_q = div_small(kStep, IG, inv_ig), step_j = kStep - step_q * IG;
+  int q = div_small(warp * kRun + PTS * wl, IG, inv_ig), jj = warp * kRun + PTS * wl - q * IG;
+  float* pos = fv.positions + 3 * (o0 + warp * kRun);  // the warp's run of vertices
+  float* nrm = normals + 3 * (o0 + warp * kRun + render_shift);
+  float* bx = staging + warp * 2 * kFloats;
+  float* bn = bx + kFloats;
+  for (int j0 = warp * kRun; j0 < n_int; j0 += kStep, pos += 3 * kStep, nrm += 3 * kStep) {
+    V3 x[PTS], n[PTS];
+#pragma unroll
+    for (int k = 0; k < PTS; ++k) x[k] = n[k] = v3(0, 0, 0);
+    if (j0 + PTS * wl < n_int) {
+      float B[PTS][12];
+#pragma unroll
+      for (int k = 0; k < PTS; ++k) point_basis<ORDERED>(basis, ORDERED ? NB + jj + k : gi[NB + jj + k].order, B[k]);
+      if constexpr (PTS == 2)
+        eval_point2(B[0], B[1], ctrl[q][0], ctrl[q][1], load3(fallback[q]), x[0], n[0], x[1], n[1]);
+      else
+        eval_point(B[0], ctrl[q][0], ctrl[q][1], load3(fallback[q]), x[0], n[0]);
+    }
+    q += step_q, jj += step_j;
+    if (jj >= IG) jj -= IG, ++q;
+    // Coalesced stores: the warp's floats of each field go through its slice of shared memory
+    // and lane l stores floats l, l + 32, ..., so each store instruction covers 32
+    // consecutive floats (a plain store3 a lane touches every sector partially in three
+    // passes: three times the L2 write traffic). No bounds checks when the warp's run is full.
+#pragma unroll
+    for (int k = 0; k < PTS; ++k) {
+      store3(bx + 3 * (PTS * wl + k), x[k]);
+      store3(bn + 3 * (PTS * wl + k), n[k]);
+    }
+    __syncwarp();
+    const int n3 = 3 * min(kRun, n_int - j0);
+    if (n3 == kFloats) {
+#pragma unroll
+      for (int r = 0; r < 3 * PTS; ++r) pos[wl + 32 * r] = bx[wl + 32 * r], nrm[wl + 32 * r] = bn[wl + 32 * r];
+    } else {
+#pragma unroll
+      for (int r = 0; r < 3 * PTS; ++r)
+        if (wl + 32 * r < n3) pos[wl + 32 * r] = bx[wl + 32 * r], nrm[wl + 32 * r] = bn[wl + 32 * r];
+    }
+    __syncwarp();
+  }
+}
+
+
 // Tessellation of a block's PB fitted patches from shared memory, one thread a (patch, grid
 // point): positions of the output vertices the patch owns, normals of its render vertices.
 // gi and basis (PlanView::grid_basis_padded): global or shared copies; ORDERED: both already
@@ -349,7 +407,6 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
                                                  Between between = {}) {
   constexpr int kThreads = PB * LANES;
   __shared__ float fallback[PB][3];  // unit_patch_normal's fallback, once a patch
-  float(*out_buf)[2][96] = reinterpret_cast<float(*)[2][96]>(staging);
   const int G = pv.grid, L = pv.level;
   const int np = min(PB, pv.patches - base);
   const long long interior0 = pv.sub_vertices + (long long)pv.edges * (L - 1);
@@ -381,88 +438,21 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
     if (o >= 0) store3(fv.positions + 3 * o, x);
   }
   between();
-  // Interior points: the block's are one contiguous run of output (and render) vertices, so
-  // each warp takes 32 consecutive ones and writes them with coalesced stores. The thread's
-  // (patch q, interior point jj) advances by a constant step instead of a division a point.
-  const int n_int = np * IG, warp = threadIdx.x / 32, wl = threadIdx.x & 31;
+  // Interior points: the block's are one contiguous run of output (and render) vertices.
+  // ORDERED and an even count a patch: two neighbouring points a thread (the pair never
+  // straddles two patches, so one read of the control points serves both: a third of the
+  // shared-memory traffic of a point, and the loop's bookkeeping once a pair).
   if (IG == 0) return;
   const long long o0 = interior0 + (long long)base * IG;
-  const float inv_ig = 1.0f / (float)IG;
-  if (ORDERED && IG % 2 == 0) {
-    // Two neighbouring points a thread, 64 a warp: with an even count a patch the pair never
-    // straddles two patches, so one read of the control points serves both (a third of the
-    // shared-memory traffic of a point), and the loop's bookkeeping is paid once a pair.
-    float(*out2)[2][192] = reinterpret_cast<float(*)[2][192]>(staging);
-    constexpr int kStep = 2 * kThreads;
-    const int step_q = div_small(kStep, IG, inv_ig), step_j = kStep - step_q * IG;
-    int q = div_small(warp * 64 + 2 * wl, IG, inv_ig), jj = warp * 64 + 2 * wl - q * IG;
-    float* pos = fv.positions + 3 * (o0 + warp * 64);  // the warp's run of 64 vertices
-    float* nrm = normals + 3 * (o0 + warp * 64 + render_shift);
-    float* bx = out2[warp][0];
-    float* bn = out2[warp][1];
-    for (int j0 = warp * 64; j0 < n_int; j0 += kStep, pos += 3 * kStep, nrm += 3 * kStep) {
-      V3 xa = v3(0, 0, 0), na = xa, xb = xa, nb = xa;
-      if (j0 + 2 * wl < n_int) {
-        float ba[12], bb[12];
-        point_basis<true>(basis, NB + jj, ba);
-        point_basis<true>(basis, NB + jj + 1, bb);
-        eval_point2(ba, bb, ctrl[q][0], ctrl[q][1], load3(fallback[q]), xa, na, xb, nb);
-      }
-      q += step_q, jj += step_j;
-      if (jj >= IG) jj -= IG, ++q;
-      store3(bx + 6 * wl, xa);
-      store3(bx + 6 * wl + 3, xb);
-      store3(bn + 6 * wl, na);
-      store3(bn + 6 * wl + 3, nb);
-      __syncwarp();
-      const int n3 = 3 * min(64, n_int - j0);
-      if (n3 == 192) {
-#pragma unroll
-        for (int r = 0; r < 6; ++r) pos[wl + 32 * r] = bx[wl + 32 * r], nrm[wl + 32 * r] = bn[wl + 32 * r];
-      } else {
-#pragma unroll
-        for (int r = 0; r < 6; ++r)
-          if (wl + 32 * r < n3) pos[wl + 32 * r] = bx[wl + 32 * r], nrm[wl + 32 * r] = bn[wl + 32 * r];
-      }
-      __syncwarp();
+  if constexpr (ORDERED) {
+    if (IG % 2 == 0) {
+      tessellate_interior<2, kThreads, ORDERED>(fv, gi, basis, ctrl, fallback, np * IG, IG, NB, o0, render_shift,
+                                                normals, staging);
+      return;
     }
-    return;
   }
-  const int step_q = div_small(kThreads, IG, inv_ig), step_j = kThreads - step_q * IG;
-  int q = div_small(warp * 32 + wl, IG, inv_ig), jj = warp * 32 + wl - q * IG;
-  float* pos = fv.positions + 3 * (o0 + warp * 32);  // the warp's run of 32 vertices
-  float* nrm = normals + 3 * (o0 + warp * 32 + render_shift);
-  float* bx = out_buf[warp][0];
-  float* bn = out_buf[warp][1];
-  for (int j0 = warp * 32; j0 < n_int; j0 += kThreads, pos += 3 * kThreads, nrm += 3 * kThreads) {
-    V3 x = v3(0, 0, 0), n = v3(0, 0, 0);
-    if (j0 + wl < n_int) {
-      const int gp = ORDERED ? NB + jj : gi[NB + jj].order;
-      float B[12];
-      point_basis<ORDERED>(basis, gp, B);
-      eval_point(B, ctrl[q][0], ctrl[q][1], load3(fallback[q]), x, n);
-    }
-    q += step_q, jj += step_j;
-    if (jj >= IG) jj -= IG, ++q;
-    // Coalesced stores: the warp's 96 floats of each field go through its slice of shared
-    // memory (stride 3 and stride 1 are both free of bank conflicts) and lane l stores floats
-    // l, l + 32, l + 64, so each store instruction covers 32 consecutive floats (a plain
-    // store3 a lane touches every sector partially in three passes: three times the L2 write
-    // traffic). No bounds checks when the warp's run is full.
-    store3(bx + 3 * wl, x);
-    store3(bn + 3 * wl, n);
-    __syncwarp();
-    const int n3 = 3 * min(32, n_int - j0);
-    if (n3 == 96) {
-#pragma unroll
-      for (int r = 0; r < 3; ++r) pos[wl + 32 * r] = bx[wl + 32 * r], nrm[wl + 32 * r] = bn[wl + 32 * r];
-    } else {
-#pragma unroll
-      for (int r = 0; r < 3; ++r)
-        if (wl + 32 * r < n3) pos[wl + 32 * r] = bx[wl + 32 * r], nrm[wl + 32 * r] = bn[wl + 32 * r];
-    }
-    __syncwarp();
-  }
+  tessellate_interior<1, kThreads, ORDERED>(fv, gi, basis, ctrl, fallback, np * IG, IG, NB, o0, render_shift,
+                                            normals, staging);
 }
 
 // Sum of v over the LANES lanes of a patch (a power of two, within one warp), in every lane.

@@ -378,6 +378,29 @@ def test_high_level_falls_back_to_staged_kernels():
     assert "sampling" in times and "sample_fit_tessellate" not in times
 
 
+def rotated_blender(rng, angle=0.35, scale=1.4):
+    """A Blender lattice turned about an oblique axis (and scaled, so that it still holds the
+    meshes): its object -> parameter map has no zero off its diagonal."""
+    axis = np.array([1.0, 2.0, -0.5]) / np.linalg.norm([1.0, 2.0, -0.5])
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    R = np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+    M = np.eye(4)
+    M[:3, :3] = scale * R
+    M[:3, 3] = (0.03, -0.02, 0.05)
+    lat = blender(rng)
+    return smoothffd.BlenderLattice(lat.rest_points, lat.points, interpolation=lat.interpolation,
+                                    lattice_to_object=M)
+
+
+@pytest.mark.parametrize("path", PATHS)
+@pytest.mark.parametrize("mesh", ["sphere", "cube_sharp"])
+def test_rotated_lattice(path, mesh):
+    """A lattice whose axes are not the mesh's (every other lattice here is axis-aligned):
+    the maps' off-diagonal terms reach every path."""
+    rng = np.random.default_rng(33)
+    check(MESHES[mesh](), rotated_blender(rng), level=5, path=path)
+
+
 def test_fused_kernel_choice(monkeypatch):
     """The inline kernel evaluates samples from box polynomials where the boxes that hold
     samples fit in shared memory (a 5x5x5 lattice of degree 2), from per-sample weights where

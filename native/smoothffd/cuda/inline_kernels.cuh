@@ -432,26 +432,30 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     const float* d = ia.D ? ia.D + 3 * i : dparam.v + 3 * i;
     sD[i] = make_float4(d[0], d[1], d[2], 0.0f);
   }
+  // The plan's tables, as asynchronous copies: all of them in flight at once (as plain loads
+  // and stores, each table's loop waited for its loads before the next one's were issued:
+  // 2.7% of W1's frame, docs/benchmarks.md).
   {
-    const int4* src = reinterpret_cast<const int4*>(ia.pieces);
-    int4* dst = reinterpret_cast<int4*>(sP);
-    for (int i = threadIdx.x; i < 6 * ia.n_pieces; i += blockDim.x) dst[i] = src[i];
-    for (int i = threadIdx.x; i < K; i += blockDim.x) sCol[i] = ia.column[i];
-    for (int i = threadIdx.x; i < pv.grid; i += blockDim.x) sBary[i] = ia.grid_bary[i];
-    for (int i = threadIdx.x; i < pv.grid; i += blockDim.x) sGi[i] = ia.grid_walk[i];
-    if (BOXES)
-      for (int i = threadIdx.x; i < ia.boxes; i += blockDim.x) sBoxList[i] = ia.box_list[i];
-    const int* ms = reinterpret_cast<const int*>(ia.column_map);
-    int* md = reinterpret_cast<int*>(sMap);
-    for (int i = threadIdx.x; i < (int)(sizeof(ColumnMap) / 4); i += blockDim.x) md[i] = ms[i];
+    auto copy16 = [&](void* dst, const void* src, int n16) {
+      for (int i = threadIdx.x; i < n16; i += blockDim.x)
+        __pipeline_memcpy_async(static_cast<int4*>(dst) + i, static_cast<const int4*>(src) + i, 16);
+    };
+    copy16(sP, ia.pieces, 6 * ia.n_pieces);
+    copy16(sCol, ia.column, K);
+    copy16(sBary, ia.grid_bary, pv.grid);
+    copy16(sGi, ia.grid_walk, pv.grid);
+    if (BOXES) copy16(sBoxList, ia.box_list, ia.boxes);
+    for (int i = threadIdx.x; i < (int)(sizeof(ColumnMap) / 4); i += blockDim.x)
+      __pipeline_memcpy_async(reinterpret_cast<int*>(sMap) + i, reinterpret_cast<const int*>(ia.column_map) + i, 4);
+    __pipeline_commit();
+    __pipeline_wait_prior(0);  // these and the first group's patch records
   }
   __syncthreads();
   const int n_cols = K0 + sMap->n_extra;
   auto column = [&](int i) { return i < K0 ? i : K0 + sMap->extra[i - K0]; };
   fetch_records(blockIdx.x, n_cols);
   if (BOXES) convert_boxes<C>(ia, sBoxList, sD, sP, sBox);
-  __pipeline_wait_prior(0);
-  __syncthreads();  // the first records are in; ctrl (the staged control values) is free again
+  __syncthreads();  // ctrl (the staged control values) is free again
   // Block b takes groups b, b + gridDim.x, ...: at any time the blocks work on neighbouring
   // groups, whose samples and tables share cache lines. (Handing out groups from an atomic
   // counter instead, to even out the SMs' busy time, measured 5% slower: docs/benchmarks.md.)

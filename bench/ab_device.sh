@@ -4,7 +4,7 @@
 # carry=[".carry", "ab_ref"]), then times W1 alternately with each (bench/ab_time.py).
 #   run(command="bash bench/ab_device.sh", carry=[".carry", "ab_ref"], kind="nvidia-h100-x1")
 # ROUNDS (default 4), LEVELS (default 10), STEPS as device_run.sh's for the working tree
-# (default "build test"); VARIANTS: space-separated NAME=VALUE settings, each also timed with
+# (default "build test"); NCU=1 adds the profile; VARIANTS: space-separated NAME=VALUE settings, each also timed with
 # the working tree (label = the setting). Logs under $OUT.
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -32,3 +32,6 @@ for (L, lab), rs in sorted(by.items()):
     print(f"L={L} {lab}: events {statistics.median(r['events'] for r in rs):.4f} "
           f"graph {statistics.median(r['graph'] for r in rs):.4f} floor {statistics.median(r['floor'] for r in rs):.4f} (n={len(rs)})")
 PY
+# NCU=1: then Nsight Compute on the working tree's kernel (bench/profile_device.sh's profile).
+[ "${NCU:-0}" = 1 ] && STEPS=" " BENCH_ARGS=" " bash bench/profile_device.sh 2>&1 | tail -12
+exit 0

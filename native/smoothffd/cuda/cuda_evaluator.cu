@@ -150,17 +150,23 @@ __host__ __device__ constexpr int tess_staging_floats(int threads, bool ordered 
 // that tessellation reads them as eight 16-byte vectors.
 constexpr int kCtrlStride = 32;
 
-// One patch's geometry (ctrl[q][0]) and normal (ctrl[q][1]) control points in shared memory.
-// The 16 bytes of padding put consecutive patches 4 banks apart: without them the patches of
-// a warp sit 256 bytes apart, in the same banks, and every per-patch store (one lane a patch)
-// and every vector load that spans two patches (tessellation) is an 8-way / 2-way conflict.
+// One patch's geometry (ctrl[q][0]) and normal (ctrl[q][1]) control points in shared memory,
+// and its unit_patch_normal fallback (the normalized sum of the corners' normal control
+// points, set before the tessellation: set_fallback_normal). Those 16 bytes also put
+// consecutive patches 4 banks apart: without them the patches of a warp sit 256 bytes apart,
+// in the same banks, and every per-patch store (one lane a patch) and every vector load that
+// spans two patches (tessellation) is an 8-way / 2-way conflict.
 struct __align__(16) PatchCtrl {
   float g[kCtrlStride];
   float n[kCtrlStride];
-  float pad[4];
+  float fallback[4];
   __device__ float* operator[](int i) { return i ? n : g; }
   __device__ const float* operator[](int i) const { return i ? n : g; }
 };
+
+__device__ __forceinline__ void set_fallback_normal(PatchCtrl& c) {
+  store3(c.fallback, normalized_or(load3(c.n) + load3(c.n + 3) + load3(c.n + 6), v3(0, 0, 1)));
+}
 
 // The cubic basis of grid point gp (12 floats, the last two unused): BARY, read its
 // barycentric point (a float4 a point, in `basis`) and compute the 10 Bernstein values
@@ -334,7 +340,7 @@ __global__ void k_edge(PlanView pv, FrameView fv) {
 template <int PTS, int kThreads, bool ORDERED>
 __device__ __forceinline__ void tessellate_interior(const FrameView& fv, const GridInfo* __restrict__ gi,
                                                     const float* __restrict__ basis, const PatchCtrl* ctrl,
-                                                    const float (*fallback)[3], int n_int, int IG, int NB,
+                                                    int n_int, int IG, int NB,
                                                     long long o0, long long render_shift,
                                                     float* __restrict__ normals, float* staging) {
   constexpr int kRun = 32 * PTS, kStep = PTS * kThreads, kFloats = 3 * kRun;
@@ -355,9 +361,9 @@ __device__ __forceinline__ void tessellate_interior(const FrameView& fv, const G
 #pragma unroll
       for (int k = 0; k < PTS; ++k) point_basis<ORDERED>(basis, ORDERED ? NB + jj + k : gi[NB + jj + k].order, B[k]);
       if constexpr (PTS == 2)
-        eval_point2(B[0], B[1], ctrl[q][0], ctrl[q][1], load3(fallback[q]), x[0], n[0], x[1], n[1]);
+        eval_point2(B[0], B[1], ctrl[q][0], ctrl[q][1], load3(ctrl[q].fallback), x[0], n[0], x[1], n[1]);
       else
-        eval_point(B[0], ctrl[q][0], ctrl[q][1], load3(fallback[q]), x[0], n[0]);
+        eval_point(B[0], ctrl[q][0], ctrl[q][1], load3(ctrl[q].fallback), x[0], n[0]);
     }
     q += step_q, jj += step_j;
     if (jj >= IG) jj -= IG, ++q;
@@ -394,28 +400,27 @@ __device__ __forceinline__ void tessellate_interior(const FrameView& fv, const G
 // coalesced stores, tess_staging_floats floats (the caller lends a table it no longer
 // needs). between(): the caller's work between the boundary and the interior points (k_inline
 // fetches the next group's first sample records there). Every thread of the block must call
-// it (it synchronizes the block once).
+// it (it synchronizes the block once unless ORDERED; k_inline sets each PatchCtrl's
+// fallback normal before its own barrier).
 struct NoWork {
   __device__ void operator()() const {}
 };
 
 template <int PB, int LANES, bool ORDERED = false, class Between = NoWork>
 __device__ __forceinline__ void tessellate_block(const PlanView& pv, const FrameView& fv, const GridInfo* __restrict__ gi,
-                                                 const float* __restrict__ basis, const PatchCtrl* ctrl, const int (*sedge)[3],
+                                                 const float* __restrict__ basis, PatchCtrl* ctrl, const int (*sedge)[3],
                                                  const uint8_t* sflags, const PatchRender* srender, int base,
                                                  long long render_shift, float* __restrict__ normals, float* staging,
                                                  Between between = {}) {
   constexpr int kThreads = PB * LANES;
-  __shared__ float fallback[PB][3];  // unit_patch_normal's fallback, once a patch
   const int G = pv.grid, L = pv.level;
   const int np = min(PB, pv.patches - base);
   const long long interior0 = pv.sub_vertices + (long long)pv.edges * (L - 1);
   const int IG = (L - 1) * (L - 2) / 2, NB = G - IG;
-  for (int q = threadIdx.x; q < np; q += kThreads) {
-    const float* cn = ctrl[q][1];
-    store3(fallback[q], normalized_or(load3(cn) + load3(cn + 3) + load3(cn + 6), v3(0, 0, 1)));
+  if constexpr (!ORDERED) {  // k_inline sets them before its barrier
+    for (int q = threadIdx.x; q < np; q += kThreads) set_fallback_normal(ctrl[q]);
+    __syncthreads();
   }
-  __syncthreads();
   // Corners and edge points: one thread a (patch, point), scattered to their owners' slots.
   const int items = np * NB;
   const float inv_nb = 1.0f / (float)NB;
@@ -433,7 +438,7 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
     V3 x, n;
     float B[12];
     point_basis<ORDERED>(basis, gp, B);
-    eval_point(B, ctrl[q][0], ctrl[q][1], load3(fallback[q]), x, n);
+    eval_point(B, ctrl[q][0], ctrl[q][1], load3(ctrl[q].fallback), x, n);
     if (r >= 0) store3(normals + 3 * r, n);
     if (o >= 0) store3(fv.positions + 3 * o, x);
   }
@@ -446,12 +451,12 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
   const long long o0 = interior0 + (long long)base * IG;
   if constexpr (ORDERED) {
     if (IG % 2 == 0) {
-      tessellate_interior<2, kThreads, ORDERED>(fv, gi, basis, ctrl, fallback, np * IG, IG, NB, o0, render_shift,
+      tessellate_interior<2, kThreads, ORDERED>(fv, gi, basis, ctrl, np * IG, IG, NB, o0, render_shift,
                                                 normals, staging);
       return;
     }
   }
-  tessellate_interior<1, kThreads, ORDERED>(fv, gi, basis, ctrl, fallback, np * IG, IG, NB, o0, render_shift,
+  tessellate_interior<1, kThreads, ORDERED>(fv, gi, basis, ctrl, np * IG, IG, NB, o0, render_shift,
                                             normals, staging);
 }
 

@@ -566,6 +566,7 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
       }
       const V3 centre = load3(geo[lp][0]) + 0.25f * (adjusted - load3(geo[lp][1]));
       store3(g + 3 * kCentre, centre);
+      set_fallback_normal(ctrl[lp]);  // here rather than behind one more barrier in tessellate_block
     }
     __syncthreads();
     // 4. Tessellation.

@@ -428,9 +428,15 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     }
   };
   fetch_indices(blockIdx.x, ia.column_map);  // from global memory: the tables are not staged yet
-  for (int i = threadIdx.x; i < ia.points; i += blockDim.x) {
-    const float* d = ia.D ? ia.D + 3 * i : dparam.v + 3 * i;
-    sD[i] = make_float4(d[0], d[1], d[2], 0.0f);
+  // The control values: from the launch's parameters indexed directly (constant-bank loads;
+  // a pointer into the parameters made these generic loads, which waited on a slow path: 2%
+  // of the stall samples), or from device memory.
+  if (ia.D) {
+    for (int i = threadIdx.x; i < ia.points; i += blockDim.x)
+      sD[i] = make_float4(ia.D[3 * i], ia.D[3 * i + 1], ia.D[3 * i + 2], 0.0f);
+  } else {
+    for (int i = threadIdx.x; i < ia.points; i += blockDim.x)
+      sD[i] = make_float4(dparam.v[3 * i], dparam.v[3 * i + 1], dparam.v[3 * i + 2], 0.0f);
   }
   // The plan's tables, as asynchronous copies: all of them in flight at once (as plain loads
   // and stores, each table's loop waited for its loads before the next one's were issued:

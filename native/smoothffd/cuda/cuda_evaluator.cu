@@ -801,11 +801,23 @@ std::vector<InlinePatch> build_patch_records(const Plan& p, const std::vector<ui
       r.adjust[i] = p.patch_adjust_normal[9 * (size_t)q + i];
     }
     uint32_t f = owns[q] | uint32_t(corner_owns[q]) << 8;
+    const int L = p.level;
     for (int k = 0; k < 3; ++k) {
       const int e = p.patch_edge[3 * (size_t)q + k], k1 = (k + 1) % 3;
       const bool rev = p.patch_edge_reversed[3 * (size_t)q + k] != 0;
-      r.edge[k] = e;
       r.vertex[k] = p.patch_vertex[3 * (size_t)q + k];
+      // PatchBoundary: the point at step s from corner k is step m = s (rev: L - s) from the
+      // edge's end a, output vertex sub_vertices + e (L - 1) + m - 1 and render vertex
+      // edge_base + (m - 1) edge_stride (owned_vertex and render_written).
+      const int ob = p.sub_vertices + e * (L - 1), rb = pr[q].edge_base[k], rs = pr[q].edge_stride[k];
+      const bool owned = (owns[q] >> k) & 1;
+      r.bound.edge[k] = make_int4(owned ? (rev ? ob + L - 1 : ob - 1) : -1, owned ? (rev ? -1 : 1) : 0,
+                                  rb >= 0 ? (rev ? rb + (L - 1) * rs : rb - rs) : -1, rb >= 0 ? (rev ? -rs : rs) : 0);
+      r.bound.corner[k] = pr[q].corner[k];
+      // -1 means "writes nothing" to the kernel and the boundary lists: a base it writes to
+      // must not be negative (render vertices of edge points come after the sub-vertices').
+      if ((owned && r.bound.edge[k].x < 0) || (rb >= 0 && r.bound.edge[k].z < 0))
+        throw std::logic_error("CudaEvaluator: unexpected render table");
       const int p0 = p.edge_patch[2 * (size_t)e], p1 = p.edge_patch[2 * (size_t)e + 1];
       const uint8_t ef = p.edge_flags[e];
       const bool self1 = p1 == q;
@@ -827,7 +839,6 @@ std::vector<InlinePatch> build_patch_records(const Plan& p, const std::vector<ui
       }
       f |= (rev ? 8u : 0u) << k | bits << (12 + 4 * k) | (self1 ? 1u : 0u) << (24 + k);
     }
-    r.render = pr[q];
     r.flags = f;
   }
   return rec;
@@ -975,10 +986,13 @@ struct CudaEvaluator::Impl {
       }
     }
     const int C = max_terms <= 2 ? 2 : max_terms == 3 ? 3 : 4;  // run_inline's kernels
+    const int boundary_points = p.grid - (p.level - 1) * (p.level - 2) / 2;
+    ia.list_stride = (32 * boundary_points + 7) / 8 * 8;
     ia.boxes = (int)box_list.size();
     if (ia.shared_bytes(p.columns, p.grid, C) > kInlineSharedBytes || points > kBoxPoints || box_env == 0)
       ia.boxes = 0;  // the per-sample weights
     inline_ok = max_terms <= 4 && n_pieces < 1024 && ia.shared_bytes(p.columns, p.grid, C) <= kInlineSharedBytes &&
+                boundary_points <= 2048 &&  // the list's 11 bits of walk position
                 p.columns - 9 <= kMaxInlineGrid && constraint_columns_as_expected(p);
     if (!inline_ok) return;
     ia.box_list = arena.upload(box_list);
@@ -1068,7 +1082,7 @@ struct CudaEvaluator::Impl {
       if (!seen[v]) lv.push_back(v);
     loose_count = (int)lv.size();
     if (loose_count) loose = arena.upload(lv);
-    ia.patch_rec = arena.upload(build_patch_records(p, owns, pr, mine));
+    std::vector<InlinePatch> rec = build_patch_records(p, owns, pr, mine);
     std::vector<float4> bary((size_t)p.grid);
     std::vector<GridInfo> walk((size_t)p.grid);
     for (int w = 0; w < p.grid; ++w) {
@@ -1078,6 +1092,28 @@ struct CudaEvaluator::Impl {
     }
     ia.grid_bary = arena.upload(bary);
     ia.grid_walk = arena.upload(walk);
+    // Each group's boundary list: the (patch, walk position) pairs that write a position or a
+    // normal, in the order of the full walk (so neighbouring threads still store neighbouring
+    // points of an edge).
+    const int NB = p.grid - (p.level - 1) * (p.level - 2) / 2;
+    const long long groups = blocks_for(p.patches, 32);
+    std::vector<uint16_t> list((size_t)groups * ia.list_stride, 0);
+    for (long long g = 0; g < groups; ++g) {
+      int n = 0;
+      const int q_end = (int)std::min<long long>(32, p.patches - g * 32);
+      for (int q = 0; q < q_end; ++q) {
+        const PatchBoundary& b = rec[(size_t)(g * 32 + q)].bound;
+        for (int w = 0; w < NB; ++w) {
+          const GridInfo& t = walk[w];
+          const bool writes = t.kind == 0 ? b.corner[t.which] >= 0
+                                          : b.edge[t.which].x >= 0 || b.edge[t.which].z >= 0;
+          if (writes) list[(size_t)g * ia.list_stride + n++] = uint16_t(q | w << 5);
+        }
+      }
+      for (int q = 0; q < q_end; ++q) rec[(size_t)(g * 32 + q)].bound.items = n;
+    }
+    ia.boundary_list = arena.upload(list);
+    ia.patch_rec = arena.upload(rec);
   }
 
   void stage_D(const float* Dh) { std::memcpy(h_D.ptr, Dh, nD * sizeof(float)); }

@@ -50,7 +50,23 @@ struct ColumnMap {
 };
 static_assert(sizeof(ColumnMap) == 76, "ColumnMap is staged as 19 words");
 
-// Everything k_inline reads about one patch besides its samples, in one 208-byte record
+// What k_inline's tessellation needs to place a patch's boundary points (corners and edge
+// points), built once per plan (CudaEvaluator::Impl::build_inline_tables): with edge k's
+// record {obase, ostep, rbase, rstep}, the point at step s (1 .. L - 1 from corner k, the
+// patch's walk, gi[w].step) writes its position to output vertex obase + s ostep and its normal
+// to render vertex rbase + s rstep; -1 / 0 when the patch writes neither (another patch owns
+// the edge's points, or its normals are not split). corner[k]: render vertex of corner k or
+// -1 (corner positions are written by the fit). items: the number of boundary points the
+// patch's group of 32 writes (its entries of InlineArgs::boundary_list).
+// Before, every thread derived these per point from the patch's edge, flags and render tables
+// (a chain of dependent shared loads and 64-bit products: a seventh of the stall samples).
+struct __align__(16) PatchBoundary {
+  int4 edge[3];
+  int corner[3];
+  int items;
+};
+
+// Everything k_inline reads about one patch besides its samples, in one 224-byte record
 // (CudaEvaluator::Impl::build_inline_tables): a block copies its next group's records into
 // shared memory with asynchronous copies (cp.async) during the current group's tessellation,
 // so that the fit, the edge adjustment and the tessellation tables wait on no global load.
@@ -60,21 +76,21 @@ static_assert(sizeof(ColumnMap) == 76, "ColumnMap is staged as 19 words");
 //   adjust: the rest adjustment normals at the corners (patch_adjust_normal);
 //   nb: per edge k, the adjustment normals of the patch across it at the edge's ends a and b
 //       (edge order), zero on a boundary;
-//   edge, vertex, render: patch_edge, patch_vertex, the PatchRender table;
-//   flags: bits 0-2 owns edge k's points, 3-5 edge k reversed (tessellate_block's sflags),
-//       8-10 writes corner k's position (corner_owns), at 12 + 4k edge k's sharp-at-a (1),
-//       sharp-at-b (2), non-manifold (4) and has-a-second-patch (8) bits, at 24 + k: this
-//       patch is side 1 of edge k (edge_control_points' p1).
+//   vertex: patch_vertex;
+//   flags: bits 0-2 owns edge k's points, 3-5 edge k reversed, 8-10 writes corner k's
+//       position (corner_owns), at 12 + 4k edge k's sharp-at-a (1), sharp-at-b (2),
+//       non-manifold (4) and has-a-second-patch (8) bits, at 24 + k: this patch is side 1 of
+//       edge k (edge_control_points' p1);
+//   bound: where its boundary points go (PatchBoundary).
 struct __align__(16) InlinePatch {
   float rest[9];
   float adjust[9];
   float nb[3][6];
-  int edge[3];
   int vertex[3];
-  PatchRender render;
   uint32_t flags;
+  PatchBoundary bound;
 };
-static_assert(sizeof(InlinePatch) == 208 && sizeof(InlinePatch) % 16 == 0, "copied as 16-byte pieces");
+static_assert(sizeof(InlinePatch) == 224 && sizeof(InlinePatch) % 16 == 0, "copied as 16-byte pieces");
 constexpr int kPatchChunks = sizeof(InlinePatch) / 16;
 
 // Everything the inline kernel needs besides the plan view, built once per plan
@@ -100,15 +116,22 @@ struct InlineArgs {
   const GridInfo* grid_walk;
   const float4* grid_bary;
   const InlinePatch* patch_rec;  // P
+  // Per group of 32 patches, a slot of list_stride entries (a multiple of 8): the boundary
+  // points (corners and edge points) its patches write, in walk order, each as
+  // q | w << 5 (patch q of the group, position w of the grid walk); the group's count is in
+  // its records' PatchBoundary::items. About 40% of a patch's boundary points write nothing
+  // (another patch owns them): without the list, their threads idled beside the others.
+  const uint16_t* boundary_list;
+  int list_stride;
   float mrow[11][9];
   // Dynamic shared memory: control values, pieces, columns, the grid's barycentric points and
-  // GridInfo (G points), the boxes and their list, the ColumnMap.
+  // GridInfo (G points), the boxes and their list, a group's boundary list, the ColumnMap.
   // With boxes the control values are staged in the block's ctrl table (kBoxPoints at most)
   // only while the boxes are computed.
   size_t shared_bytes(int K, int G, int C) const {
     return 16 * ((boxes > 0 ? 0 : (size_t)points) + 6 * (size_t)n_pieces + (size_t)K + 2 * (size_t)G +
                  (size_t)boxes * (C * C * C + 1)) +
-           sizeof(ColumnMap);
+           2 * (size_t)list_stride + sizeof(ColumnMap);
   }
 };
 
@@ -352,6 +375,51 @@ __device__ __forceinline__ void sample_box(const float4* __restrict__ boxes, con
   compose_inline(pw, m, val, gu, gv, gw, F, J);
 }
 
+// tessellate_block's work for k_inline's group of patches (ctrl, already with their fallback
+// normals), in the walk order of the grid (gi, basis: GridInfo and barycentric points in walk
+// order, shared memory): first the boundary points the group writes, from its list (list:
+// InlineArgs::boundary_list's entries, sbound: the patches' PatchBoundary tables), one thread
+// a point, so that no thread idles beside the others on a point another patch owns; then
+// between() (the next group's first sample records); then the interior points, which every
+// patch writes, as tessellate_block has them.
+template <int kThreads, class Between>
+__device__ __forceinline__ void tessellate_listed(const PlanView& pv, const FrameView& fv, const GridInfo* __restrict__ gi,
+                                                  const float* __restrict__ basis, const PatchCtrl* ctrl,
+                                                  const PatchBoundary* sbound, const uint16_t* list, int base,
+                                                  long long render_shift, float* __restrict__ normals, float* staging,
+                                                  Between between) {
+  const int L = pv.level, G = pv.grid;
+  const int np = min(kThreads / 4, pv.patches - base);
+  const int IG = (L - 1) * (L - 2) / 2, NB = G - IG;
+  const int items = sbound[0].items;
+  for (int i = threadIdx.x; i < items; i += kThreads) {
+    const uint32_t e = list[i];
+    const int q = e & 31u, w = e >> 5;
+    const GridInfo t = gi[w];
+    int o = -1, r;
+    if (t.kind == 0) {
+      r = sbound[q].corner[t.which];
+    } else {
+      const int4 b = sbound[q].edge[t.which];
+      o = b.x + t.step * b.y;
+      r = b.z + t.step * b.w;
+    }
+    V3 x, n;
+    float B[12];
+    point_basis<true>(basis, w, B);
+    eval_point(B, ctrl[q][0], ctrl[q][1], load3(ctrl[q].fallback), x, n);
+    if (r >= 0) store3(normals + 3 * (long long)r, n);
+    if (o >= 0) store3(fv.positions + 3 * (long long)o, x);
+  }
+  between();
+  if (IG == 0) return;
+  const long long o0 = pv.sub_vertices + (long long)pv.edges * (L - 1) + (long long)base * IG;
+  if (IG % 2 == 0)
+    tessellate_interior<2, kThreads, true>(fv, gi, basis, ctrl, np * IG, IG, NB, o0, render_shift, normals, staging);
+  else
+    tessellate_interior<1, kThreads, true>(fv, gi, basis, ctrl, np * IG, IG, NB, o0, render_shift, normals, staging);
+}
+
 // One kernel a frame, persistent: each block stages the lattice tables once, then takes
 // groups of PB patches (group, group + gridDim.x, ...). LANES threads a patch:
 // 1 + 3. each lane evaluates its share of the columns (sample, Jacobian, deformed
@@ -373,9 +441,7 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
   __shared__ float corner_jac[PB][3][9];  // Jacobians at the corners (constraint columns 0-2)
   __shared__ float geo[PB][2][3];         // fitted centre, sum of the fitted edge control points
   __shared__ InlinePatch srec[PB];        // the group's patch records
-  __shared__ int sedge[PB][3];
-  __shared__ uint8_t sflags[PB];  // bits 0-2: owns edge k; bits 3-5: edge k reversed
-  __shared__ PatchRender srender[PB];
+  __shared__ PatchBoundary sbound[PB];    // their boundary tables (srec is refilled meanwhile)
   const int K = pv.columns, K0 = K - 9;
   static_assert(sizeof(ctrl) >= 16 * kBoxPoints, "the control values fit in ctrl");
   float4* sD = BOXES ? reinterpret_cast<float4*>(&ctrl[0]) : lattice_shared;
@@ -385,7 +451,8 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
   GridInfo* sGi = reinterpret_cast<GridInfo*>(sBary + pv.grid);
   float4* sBox = reinterpret_cast<float4*>(sGi + pv.grid);  // BOXES: boxes x C^3
   int4* sBoxList = reinterpret_cast<int4*>(sBox + (BOXES ? ia.boxes * C * C * C : 0));  // BOXES: ia.box_list
-  ColumnMap* sMap = reinterpret_cast<ColumnMap*>(sBoxList + (BOXES ? ia.boxes : 0));
+  uint16_t* sList = reinterpret_cast<uint16_t*>(sBoxList + (BOXES ? ia.boxes : 0));  // a group's boundary list
+  ColumnMap* sMap = reinterpret_cast<ColumnMap*>(sList + ia.list_stride);
   // The group's patch records, copied asynchronously (no registers held, no wait until
   // __pipeline_wait_prior before the barrier that precedes their use).
   auto fetch_patch_records = [&](int grp) {
@@ -473,6 +540,14 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     // 1 + 3. Sampling and the constrained fit's centre row over the free columns.
     V3 gc = v3(0, 0, 0), nc = v3(0, 0, 0);
     const InlinePatch& rec = srec[lp];
+    {
+      // The group's boundary list, on its way during the sampling (waited for before the
+      // barrier that precedes the tessellation).
+      const int4* src = reinterpret_cast<const int4*>(ia.boundary_list + (long long)group * ia.list_stride);
+      for (int i = threadIdx.x; i < (srec[0].bound.items + 7) / 8; i += blockDim.x)
+        __pipeline_memcpy_async(reinterpret_cast<int4*>(sList) + i, src + i, 16);
+      __pipeline_commit();
+    }
     if (live) {
       const int* cols = pv.patch_samples + (long long)p * K;
       for (int i = lane; i < n_cols; i += LANES) {
@@ -555,9 +630,7 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
       store3(g + 3 * edge_control_index(k, true), rev ? cp[0] : cp[1]);
     } else if (live) {
       // The tessellation's tables, out of the record (which the next group's overwrites).
-      for (int k = 0; k < 3; ++k) sedge[lp][k] = rec.edge[k];
-      sflags[lp] = uint8_t(rec.flags & 63u);
-      srender[lp] = rec.render;
+      sbound[lp] = rec.bound;
     }
     __syncwarp();
     if (live && lane == 0) {
@@ -574,14 +647,15 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
       store3(g + 3 * kCentre, centre);
       set_fallback_normal(ctrl[lp]);  // here rather than behind one more barrier in tessellate_block
     }
+    __pipeline_wait_prior(0);  // the boundary list
     __syncthreads();
     // 4. Tessellation.
     static_assert(sizeof(stage) >= sizeof(float) * tess_staging_floats(PB * LANES, true), "staging fits in stage");
     const int next = group + gridDim.x;
     fetch_patch_records(next);
     fetch_indices(next, sMap);
-    tessellate_block<PB, LANES, true>(pv, fv, sGi, reinterpret_cast<const float*>(sBary), ctrl, sedge, sflags, srender,
-                                      base, render_shift, normals, &stage[0][0][0], [&] { fetch_records(next, n_cols); });
+    tessellate_listed<PB * LANES>(pv, fv, sGi, reinterpret_cast<const float*>(sBary), ctrl, sbound, sList, base,
+                                  render_shift, normals, &stage[0][0][0], [&] { fetch_records(next, n_cols); });
     __pipeline_wait_prior(0);
     __syncthreads();  // the next group's records are in; it overwrites the block's tables
   }

@@ -337,14 +337,17 @@ __global__ void k_edge(PlanView pv, FrameView fv) {
 // straddles two patches): each warp takes 32 PTS consecutive points of the block's run and
 // writes them with coalesced stores. The thread's (patch q, interior point jj) advances by a
 // constant step instead of a division a point.
-template <int PTS, int kThreads, bool ORDERED>
+// LAST_FIRST: the block's last warp takes the first run (when the runs do not divide evenly,
+// the warps at the end take one more: k_inline's boundary list gives its extra points to the
+// first warps).
+template <int PTS, int kThreads, bool ORDERED, bool LAST_FIRST = false>
 __device__ __forceinline__ void tessellate_interior(const FrameView& fv, const GridInfo* __restrict__ gi,
                                                     const float* __restrict__ basis, const PatchCtrl* ctrl,
                                                     int n_int, int IG, int NB,
                                                     long long o0, long long render_shift,
                                                     float* __restrict__ normals, float* staging) {
   constexpr int kRun = 32 * PTS, kStep = PTS * kThreads, kFloats = 3 * kRun;
-  const int warp = threadIdx.x / 32, wl = threadIdx.x & 31;
+  const int warp = LAST_FIRST ? kThreads / 32 - 1 - (int)threadIdx.x / 32 : threadIdx.x / 32, wl = threadIdx.x & 31;
   const float inv_ig = 1.0f / (float)IG;
   const int step_q = div_small(kStep, IG, inv_ig), step_j = kStep - step_q * IG;
   int q = div_small(warp * kRun + PTS * wl, IG, inv_ig), jj = warp * kRun + PTS * wl - q * IG;

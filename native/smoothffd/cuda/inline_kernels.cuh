@@ -414,10 +414,13 @@ __device__ __forceinline__ void tessellate_listed(const PlanView& pv, const Fram
   between();
   if (IG == 0) return;
   const long long o0 = pv.sub_vertices + (long long)pv.edges * (L - 1) + (long long)base * IG;
+  // The warps whose threads took one boundary point more take their interior runs last.
   if (IG % 2 == 0)
-    tessellate_interior<2, kThreads, true>(fv, gi, basis, ctrl, np * IG, IG, NB, o0, render_shift, normals, staging);
+    tessellate_interior<2, kThreads, true, true>(fv, gi, basis, ctrl, np * IG, IG, NB, o0, render_shift, normals,
+                                                 staging);
   else
-    tessellate_interior<1, kThreads, true>(fv, gi, basis, ctrl, np * IG, IG, NB, o0, render_shift, normals, staging);
+    tessellate_interior<1, kThreads, true, true>(fv, gi, basis, ctrl, np * IG, IG, NB, o0, render_shift, normals,
+                                                 staging);
 }
 
 // One kernel a frame, persistent: each block stages the lattice tables once, then takes
@@ -464,7 +467,6 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     }
     __pipeline_commit();
   };
-  fetch_patch_records(blockIdx.x);
   const int lp = threadIdx.x / LANES, lane = threadIdx.x % LANES;
   // The sample records are two dependent gathers (column -> sample -> record). Within a
   // group the sample index is fetched one iteration ahead of its record and the record two
@@ -521,14 +523,16 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     for (int i = threadIdx.x; i < (int)(sizeof(ColumnMap) / 4); i += blockDim.x)
       __pipeline_memcpy_async(reinterpret_cast<int*>(sMap) + i, reinterpret_cast<const int*>(ia.column_map) + i, 4);
     __pipeline_commit();
-    __pipeline_wait_prior(0);  // these and the first group's patch records
+    fetch_patch_records(blockIdx.x);  // the first group's, committed last: not waited for yet
+    __pipeline_wait_prior(1);         // the tables
   }
   __syncthreads();
   const int n_cols = K0 + sMap->n_extra;
   auto column = [&](int i) { return i < K0 ? i : K0 + sMap->extra[i - K0]; };
   fetch_records(blockIdx.x, n_cols);
   if (BOXES) convert_boxes<C>(ia, sBoxList, sD, sP, sBox);
-  __syncthreads();  // ctrl (the staged control values) is free again
+  __pipeline_wait_prior(0);  // the first group's patch records, which arrived meanwhile
+  __syncthreads();           // and ctrl (the staged control values) is free again
   // Block b takes groups b, b + gridDim.x, ...: at any time the blocks work on neighbouring
   // groups, whose samples and tables share cache lines. (Handing out groups from an atomic
   // counter instead, to even out the SMs' busy time, measured 5% slower: docs/benchmarks.md.)

@@ -30,6 +30,7 @@ for r in rows:
     by[(r["level"], r["label"])].append(r)
 for (L, lab), rs in sorted(by.items()):
     print(f"L={L} {lab}: events {statistics.median(r['events'] for r in rs):.4f} "
+          f"queued {statistics.median(r.get('queued', float('nan')) for r in rs):.4f} "
           f"graph {statistics.median(r['graph'] for r in rs):.4f} floor {statistics.median(r['floor'] for r in rs):.4f} (n={len(rs)})")
 PY
 # NCU=1: then Nsight Compute on the working tree's kernel (bench/profile_device.sh's profile).

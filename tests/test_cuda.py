@@ -331,6 +331,20 @@ def test_upsampling_baseline_matches_lattice():
     assert t["deform_samples"] > 0
 
 
+def test_benchmark_reports_every_measure():
+    """CudaEvaluator.benchmark's totals (host-paced events, events behind a holding kernel,
+    graph replays) and floor, which bench/bench_gpu.py reports: present and finite, and the
+    output bytes those of the compact per-frame output (positions per output vertex, normals
+    per render vertex). Their values are the benchmark's business, not this test's."""
+    rng = np.random.default_rng(3)
+    plan = smoothffd.Deformer(icosphere(2), bspline(rng), level=4, device="cpu").plan
+    vals = np.ascontiguousarray(bspline(rng).control_values().reshape(-1, 3), dtype=np.float32)
+    t = _core.CudaEvaluator(plan, "fused").benchmark(vals, 5)
+    for key in ("total_events", "total_events_queued", "total_graph", "floor_ms", "d2d_bandwidth_GBps"):
+        assert np.isfinite(t[key]) and t[key] > 0, key
+    assert t["output_bytes"] == 12 * (plan.output_vertices + plan.render_vertex_count)
+
+
 @pytest.mark.skipif(os.environ.get("SMOOTHFFD_SANITIZER") != "1", reason="run under compute-sanitizer only")
 def test_sanitizer_subset(monkeypatch):
     """Small mixed workload for compute-sanitizer (both paths, copy back, baseline; the inline

@@ -124,8 +124,18 @@ double median(std::vector<double> v) {
 
 inline unsigned blocks_for(long long n, int threads) { return (unsigned)((n + threads - 1) / threads); }
 
+// Holds its stream for ns nanoseconds of the device's global timer (benchmark: the frame
+// behind it is queued in full before the device reaches it).
+__global__ void k_hold(long long ns) {
+  long long t0, t;
+  asm volatile("mov.u64 %0, %%globaltimer;" : "=l"(t0));
+  do {
+    asm volatile("mov.u64 %0, %%globaltimer;" : "=l"(t));
+  } while (t - t0 < ns);
+}
+
 // Per grid point of the tessellation: kind (0 corner, 1 edge, 2 interior), which, step; and
-// `order`: entry g holds the grid point at position g of the order tessellate_block walks
+// `order`: entry g holds the grid point at position g of the order the tessellation walks
 // (the 3L boundary points first, then the interior points by `which`).
 struct GridInfo {
   int kind, which, step, order;
@@ -140,8 +150,8 @@ __device__ __forceinline__ int div_small(int j, int d, float inv) {
   return q;
 }
 
-// Shared floats tessellate_block needs for its coalesced stores: a warp's 2 x 96, or 2 x 192
-// in the ORDERED mode (two points a thread, see tessellate_block).
+// Shared floats tessellate_interior needs for its coalesced stores: a warp's 2 x 96, or 2 x 192
+// in the ORDERED mode (two points a thread: k_inline's tessellate_listed).
 __host__ __device__ constexpr int tess_staging_floats(int threads, bool ordered = false) {
   return threads / 32 * 2 * (ordered ? 192 : 96);
 }
@@ -333,10 +343,11 @@ __global__ void k_edge(PlanView pv, FrameView fv) {
 
 // ---------------------------------------------------------------- fused path
 
-// tessellate_block's interior points, PTS consecutive ones a thread (1, or 2 when no pair
-// straddles two patches): each warp takes 32 PTS consecutive points of the block's run and
-// writes them with coalesced stores. The thread's (patch q, interior point jj) advances by a
-// constant step instead of a division a point.
+// The interior points of a block's patches (tessellate_block, tessellate_listed), PTS
+// consecutive ones a thread (1, or 2 when no pair straddles two patches): each warp takes
+// 32 PTS consecutive points of the block's run and writes them with coalesced stores. The
+// thread's (patch q, interior point jj) advances by a constant step instead of a division a
+// point. ORDERED: gi and basis in walk order with barycentric points (k_inline's tables).
 // LAST_FIRST: the block's last warp takes the first run (when the runs do not divide evenly,
 // the warps at the end take one more: k_inline's boundary list gives its extra points to the
 // first warps).
@@ -394,41 +405,30 @@ __device__ __forceinline__ void tessellate_interior(const FrameView& fv, const G
 }
 
 
-// Tessellation of a block's PB fitted patches from shared memory, one thread a (patch, grid
-// point): positions of the output vertices the patch owns, normals of its render vertices.
-// gi and basis (PlanView::grid_basis_padded): global or shared copies; ORDERED: both already
-// in the walk order (entry g is grid point gi[g].order of the plan's tables, as k_inline
-// stages them), which takes a dependent load off every point, and basis holds each point's
-// barycentric point instead of its basis (point_basis<true>). staging: shared memory for the
-// coalesced stores, tess_staging_floats floats (the caller lends a table it no longer
-// needs). between(): the caller's work between the boundary and the interior points (k_inline
-// fetches the next group's first sample records there). Every thread of the block must call
-// it (it synchronizes the block once unless ORDERED; k_inline sets each PatchCtrl's
-// fallback normal before its own barrier).
-struct NoWork {
-  __device__ void operator()() const {}
-};
-
-template <int PB, int LANES, bool ORDERED = false, class Between = NoWork>
+// Tessellation of a block's PB fitted patches from shared memory (the staged kernels), one
+// thread a (patch, grid point): positions of the output vertices the patch owns, normals of
+// its render vertices. gi and basis: the plan's GridInfo and PlanView::grid_basis_padded in
+// global memory. staging: shared memory for the coalesced stores, tess_staging_floats floats.
+// Every thread of the block must call it (it synchronizes the block once). k_inline has its
+// own walk (tessellate_listed, inline_kernels.cuh): grid tables in walk order in shared memory
+// and a list of the boundary points each group writes.
+template <int PB, int LANES>
 __device__ __forceinline__ void tessellate_block(const PlanView& pv, const FrameView& fv, const GridInfo* __restrict__ gi,
                                                  const float* __restrict__ basis, PatchCtrl* ctrl, const int (*sedge)[3],
                                                  const uint8_t* sflags, const PatchRender* srender, int base,
-                                                 long long render_shift, float* __restrict__ normals, float* staging,
-                                                 Between between = {}) {
+                                                 long long render_shift, float* __restrict__ normals, float* staging) {
   constexpr int kThreads = PB * LANES;
   const int G = pv.grid, L = pv.level;
   const int np = min(PB, pv.patches - base);
   const long long interior0 = pv.sub_vertices + (long long)pv.edges * (L - 1);
   const int IG = (L - 1) * (L - 2) / 2, NB = G - IG;
-  if constexpr (!ORDERED) {  // k_inline sets them before its barrier
-    for (int q = threadIdx.x; q < np; q += kThreads) set_fallback_normal(ctrl[q]);
-    __syncthreads();
-  }
+  for (int q = threadIdx.x; q < np; q += kThreads) set_fallback_normal(ctrl[q]);
+  __syncthreads();
   // Corners and edge points: one thread a (patch, point), scattered to their owners' slots.
   const int items = np * NB;
   const float inv_nb = 1.0f / (float)NB;
   for (int i = threadIdx.x; i < items; i += kThreads) {
-    const int q = div_small(i, NB, inv_nb), w = i - q * NB, gp = ORDERED ? w : gi[w].order;
+    const int q = div_small(i, NB, inv_nb), w = i - q * NB, gp = gi[w].order;
     GridInfo t = gi[gp];
     uint8_t f = sflags[q];
     long long o = -1;
@@ -440,27 +440,15 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
     if (r < 0 && o < 0) continue;
     V3 x, n;
     float B[12];
-    point_basis<ORDERED>(basis, gp, B);
+    point_basis<false>(basis, gp, B);
     eval_point(B, ctrl[q][0], ctrl[q][1], load3(ctrl[q].fallback), x, n);
     if (r >= 0) store3(normals + 3 * r, n);
     if (o >= 0) store3(fv.positions + 3 * o, x);
   }
-  between();
   // Interior points: the block's are one contiguous run of output (and render) vertices.
-  // ORDERED and an even count a patch: two neighbouring points a thread (the pair never
-  // straddles two patches, so one read of the control points serves both: a third of the
-  // shared-memory traffic of a point, and the loop's bookkeeping once a pair).
   if (IG == 0) return;
   const long long o0 = interior0 + (long long)base * IG;
-  if constexpr (ORDERED) {
-    if (IG % 2 == 0) {
-      tessellate_interior<2, kThreads, ORDERED>(fv, gi, basis, ctrl, np * IG, IG, NB, o0, render_shift,
-                                                normals, staging);
-      return;
-    }
-  }
-  tessellate_interior<1, kThreads, ORDERED>(fv, gi, basis, ctrl, np * IG, IG, NB, o0, render_shift,
-                                            normals, staging);
+  tessellate_interior<1, kThreads, false>(fv, gi, basis, ctrl, np * IG, IG, NB, o0, render_shift, normals, staging);
 }
 
 // Sum of v over the LANES lanes of a patch (a power of two, within one warp), in every lane.
@@ -1559,6 +1547,25 @@ StageTimes CudaEvaluator::benchmark(const float* D, int iters) {
   StageTimes t;
   for (size_t i = 0; i < names.size(); ++i) t.emplace_back(names[i], median(per[i]));
   t.emplace_back("total_events", median(totals));
+
+  // The same frames with the device time alone between the events: each frame queued behind
+  // a kernel that holds the stream for 50 us, so that its first event and its launches are
+  // already waiting when the device reaches them (nvbench's blocking kernel does the same).
+  // Above, the host enqueues the event and then the launch while the device idles: the
+  // events time the launch's host latency too (about 5 us a frame on the H100 machine).
+  {
+    std::vector<double> queued;
+    for (int it = 0; it < iters; ++it) {
+      k_hold<<<1, 1, 0, m.stream>>>(50000);
+      CK_LAUNCH(k_hold);
+      m.run_stages(nullptr, true);
+      CK(cudaEventSynchronize(m.events.ev[names.size()]));
+      float ms = 0;
+      CK(cudaEventElapsedTime(&ms, m.events.ev[0], m.events.ev[names.size()]));
+      queued.push_back(ms);
+    }
+    t.emplace_back("total_events_queued", median(queued));
+  }
 
   // The whole frame (D upload + stages) as a CUDA graph, replayed back to back.
   cudaGraph_t graph = nullptr;

@@ -1,7 +1,7 @@
 // The inline fused path (the CUDA evaluator's default for plans with at most 4 terms an axis):
 // one kernel a frame samples, fits, adjusts the edges and tessellates, with nothing going
 // through device memory between the stages. Included by cuda_evaluator.cu inside its anonymous
-// namespace (it uses GridInfo, PatchRender and tessellate_block from there).
+// namespace (it uses GridInfo, PatchCtrl, eval_point and tessellate_interior from there).
 //
 // Why: the staged path (k_sample -> k_edge -> k_fit_tessellate_staged) writes every sample's
 // value and Jacobian (48 bytes) and gathers them back by index for each patch; the fit then
@@ -111,7 +111,7 @@ struct InlineArgs {
   // per-sample weights are used. box_list: each box's three pieces (indices into `pieces`).
   const int4* box_list;
   int boxes;
-  // The tessellation grid in the order tessellate_block walks it (its ORDERED mode: entry g
+  // The tessellation grid in the order tessellate_listed walks it (the ORDERED mode: entry g
   // is grid point gi[g].order of the plan's tables): GridInfo and barycentric point (w = 0).
   const GridInfo* grid_walk;
   const float4* grid_bary;
@@ -649,7 +649,7 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
       }
       const V3 centre = load3(geo[lp][0]) + 0.25f * (adjusted - load3(geo[lp][1]));
       store3(g + 3 * kCentre, centre);
-      set_fallback_normal(ctrl[lp]);  // here rather than behind one more barrier in tessellate_block
+      set_fallback_normal(ctrl[lp]);  // before the barrier below, not behind one more
     }
     __pipeline_wait_prior(0);  // the boundary list
     __syncthreads();

@@ -1,23 +1,38 @@
 #!/usr/bin/env bash
-# Same-call A/B on the device: builds the working tree and a reference tree (REF, default
-# ab_ref/: e.g. `mkdir ab_ref && git archive <commit> | tar -x -C ab_ref`, carried with
-# carry=[".carry", "ab_ref"]), then times W1 alternately with each (bench/ab_time.py).
+# Same-call A/B on the device: builds the working tree and one or more reference trees, then
+# times W1 alternately with each in fresh processes (bench/ab_time.py), so that every tree is
+# compared on the same machine in the same call (the floor moves a few per cent between calls).
+#   mkdir ab_ref && git archive <commit> native python/smoothffd CMakeLists.txt scripts bench tests | tar -x -C ab_ref
 #   run(command="bash bench/ab_device.sh", carry=[".carry", "ab_ref"], kind="nvidia-h100-x1")
+# REFS: the reference trees, space-separated folders in the repository (default "${REF:-ab_ref}"),
+#   each carried (carry=[".carry", "ab_ref", "ab_exp1", ...]: 8 paths, 64 MiB in all) and built
+#   in parallel; label = the folder's name ("ref" for ab_ref). An experiment on a branch is a
+#   reference tree too: `git archive exp/x ... | tar -x -C ab_exp1`.
+# TEST_REFS: those of REFS to run the GPU tests in as well (their archives must hold tests/).
 # ROUNDS (default 4), LEVELS (default 10), STEPS as device_run.sh's for the working tree
-# (default "build test"); NCU=1 adds the profile; VARIANTS: space-separated NAME=VALUE settings, each also timed with
-# the working tree (label = the setting). Logs under $OUT.
+# (default "build test"); NCU=1 adds the profile; VARIANTS: space-separated NAME=VALUE
+# settings, each also timed with the working tree (label = the setting). Logs under $OUT.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-/tmp/sffd-out}; mkdir -p "$OUT"
-REF=${REF:-ab_ref}
+REFS=${REFS:-${REF:-ab_ref}}
 export PATH="$PATH:/usr/local/cuda/bin" PYTHONUNBUFFERED=1
-( cd "$REF" && BUILD_DIR=/tmp/ref-build PYTHON="$(command -v python3)" CMAKE_ARGS="-DSMOOTHFFD_TESTS=OFF" \
-    bash scripts/build.sh > "$OUT/ref_build.log" 2>&1; echo "ref build rc=$?" ) &
+label() { [ "$1" = ab_ref ] && echo ref || basename "$1"; }
+for ref in $REFS; do
+  ( cd "$ref" && BUILD_DIR="/tmp/build-$(basename "$ref")" PYTHON="$(command -v python3)" \
+      CMAKE_ARGS="-DSMOOTHFFD_TESTS=OFF" bash scripts/build.sh > "$OUT/build_$(basename "$ref").log" 2>&1
+    echo "$ref build rc=$?" ) &
+done
 STEPS=${STEPS:-"build test"} bash bench/device_run.sh 2>&1 | grep -v "^ *Function\|REG:\|STACK:" | tail -20
 wait
+for ref in ${TEST_REFS:-}; do
+  echo "== GPU tests in $ref"
+  ( cd "$ref" && PYTHONPATH="$PWD/python" timeout 300 python3 -m pytest -q -x tests/test_cuda.py tests/test_render_vertices.py \
+      2>&1 | tee "$OUT/test_$(basename "$ref").log" | tail -4 )
+done
 for r in $(seq 1 "${ROUNDS:-4}"); do
   for L in ${LEVELS:-10}; do
-    PYTHONPATH="$REF/python" python3 bench/ab_time.py --level "$L" --label ref
+    for ref in $REFS; do PYTHONPATH="$ref/python" python3 bench/ab_time.py --level "$L" --label "$(label "$ref")"; done
     PYTHONPATH="$PWD/python" python3 bench/ab_time.py --level "$L" --label new
     for v in ${VARIANTS:-}; do PYTHONPATH="$PWD/python" python3 bench/ab_time.py --level "$L" --label "$v" --env "$v"; done
   done

@@ -151,9 +151,21 @@ __device__ __forceinline__ int div_small(int j, int d, float inv) {
 }
 
 // Shared floats tessellate_interior needs for its coalesced stores: a warp's 2 x 96, or 2 x 192
-// in the ORDERED mode (two points a thread: k_inline's tessellate_listed).
-__host__ __device__ constexpr int tess_staging_floats(int threads, bool ordered = false) {
-  return threads / 32 * 2 * (ordered ? 192 : 96);
+// with two points a thread (k_inline's tessellate_listed).
+__host__ __device__ constexpr int tess_staging_floats(int threads, int pts = 1) { return threads / 32 * 2 * 96 * pts; }
+
+// PTS consecutive points' coordinates (3 PTS floats) from dst on: two points as three 8-byte
+// stores (dst 8-byte aligned), one as three 4-byte stores.
+template <int PTS>
+__device__ __forceinline__ void store_points(float* dst, const V3 v[PTS]) {
+  if constexpr (PTS == 2) {
+    float2* d = reinterpret_cast<float2*>(dst);
+    d[0] = make_float2(v[0].x, v[0].y);
+    d[1] = make_float2(v[0].z, v[1].x);
+    d[2] = make_float2(v[1].y, v[1].z);
+  } else {
+    store3(dst, v[0]);
+  }
 }
 
 // Control points of a patch in the fused kernels' shared memory: 30 floats padded to 32, so
@@ -178,74 +190,71 @@ __device__ __forceinline__ void set_fallback_normal(PatchCtrl& c) {
   store3(c.fallback, normalized_or(load3(c.n) + load3(c.n + 3) + load3(c.n + 6), v3(0, 0, 1)));
 }
 
-// The cubic basis of grid point gp (12 floats, the last two unused): BARY, read its
-// barycentric point (a float4 a point, in `basis`) and compute the 10 Bernstein values
-// (cubic_basis, about 20 multiplies); else read them (PlanView::grid_basis_padded layout, 12
-// floats a point, 16-byte aligned). Computing them takes 2 of the 3 vector loads a point off
-// the shared-memory pipe, the busiest unit of the inline kernel.
-template <bool BARY>
-__device__ __forceinline__ void point_basis(const float* __restrict__ basis, int gp, float b[12]) {
-  if (BARY) {
-    const float4 q = reinterpret_cast<const float4*>(basis)[gp];
-    const float bb[3] = {q.x, q.y, q.z};
-    cubic_basis<float>(bb, b);
-    b[10] = b[11] = 0.0f;
-  } else {
-#pragma unroll
-    for (int i = 0; i < 3; ++i) {
-      const float4 q = reinterpret_cast<const float4*>(basis + 12 * gp)[i];
-      b[4 * i] = q.x, b[4 * i + 1] = q.y, b[4 * i + 2] = q.z, b[4 * i + 3] = q.w;
-    }
-  }
+// Parameters (s, t) = (b1, b2) of grid point gp, from a table of its barycentric points (a
+// float4 a point: b0, b1, b2, 0; one vector load).
+__device__ __forceinline__ void grid_st(const float4* __restrict__ bary, int gp, float& s, float& t) {
+  const float4 q = bary[gp];
+  s = q.y;
+  t = q.z;
 }
 
-// Position x and unit normal n of a patch at a grid point: b, the point's cubic basis
-// (point_basis), cg and cn its geometry and normal control points (kCtrlStride floats,
-// 16-byte aligned, shared memory), fallback the patch's unit_patch_normal fallback.
-// eval_cubic and unit_patch_normal (stages.hpp) in the same order of operations, with vector
-// loads (16 instead of 60 scalar loads a point).
-__device__ __forceinline__ void eval_point(const float b[12], const float* cg, const float* cn, V3 fallback, V3& x,
+// A patch field (kCtrlStride floats, 16-byte aligned, shared memory) as 10 points, read as
+// eight 16-byte vectors (instead of 30 scalar loads).
+__device__ __forceinline__ void load_field(const float* f, V3 out[10]) {
+  float v[kCtrlStride];
+#pragma unroll
+  for (int i = 0; i < kCtrlStride / 4; ++i) {
+    const float4 q = reinterpret_cast<const float4*>(f)[i];
+    v[4 * i] = q.x, v[4 * i + 1] = q.y, v[4 * i + 2] = q.z, v[4 * i + 3] = q.w;
+  }
+#pragma unroll
+  for (int k = 0; k < 10; ++k) out[k] = v3(v[3 * k], v[3 * k + 1], v[3 * k + 2]);
+}
+
+// The inverse of load_field: 10 points into a patch field as eight 16-byte stores.
+__device__ __forceinline__ void store_field(float* f, const V3 in[10]) {
+  float v[kCtrlStride];
+#pragma unroll
+  for (int k = 0; k < 10; ++k) v[3 * k] = in[k].x, v[3 * k + 1] = in[k].y, v[3 * k + 2] = in[k].z;
+  v[30] = v[31] = 0.0f;
+#pragma unroll
+  for (int i = 0; i < kCtrlStride / 4; ++i)
+    reinterpret_cast<float4*>(f)[i] = make_float4(v[4 * i], v[4 * i + 1], v[4 * i + 2], v[4 * i + 3]);
+}
+
+// Converts a patch field from Bernstein control points to the power form that eval_point
+// reads (cubic_power_form, plan/bezier.hpp), in place. The fused kernels convert each patch
+// once, after its fit, edge adjustment and fallback normal (which read the Bernstein form).
+__device__ __forceinline__ void to_power_form(float* f) {
+  V3 b[10], a[10];
+  load_field(f, b);
+  cubic_power_form(b, a);
+  store_field(f, a);
+}
+
+// Position x and unit normal n of a patch at grid point (s, t) (grid_st): cg and cn its
+// geometry and normal patches in power form (to_power_form), fallback its unit_patch_normal
+// fallback. The same surface as eval_cubic and unit_patch_normal (stages.hpp), which the CPU
+// evaluates in Bernstein form, up to rounding.
+__device__ __forceinline__ void eval_point(float s, float t, const float* cg, const float* cn, V3 fallback, V3& x,
                                            V3& n) {
-  float g[kCtrlStride], c[kCtrlStride];
-#pragma unroll
-  for (int i = 0; i < kCtrlStride / 4; ++i) {
-    const float4 q = reinterpret_cast<const float4*>(cg)[i], r = reinterpret_cast<const float4*>(cn)[i];
-    g[4 * i] = q.x, g[4 * i + 1] = q.y, g[4 * i + 2] = q.z, g[4 * i + 3] = q.w;
-    c[4 * i] = r.x, c[4 * i + 1] = r.y, c[4 * i + 2] = r.z, c[4 * i + 3] = r.w;
-  }
-  x = v3(0, 0, 0);
-  V3 nv = v3(0, 0, 0);
-#pragma unroll
-  for (int k = 0; k < 10; ++k) {
-    x += b[k] * v3(g[3 * k], g[3 * k + 1], g[3 * k + 2]);
-    nv += b[k] * v3(c[3 * k], c[3 * k + 1], c[3 * k + 2]);
-  }
-  n = normalized_or(nv, fallback);
+  V3 g[10], c[10];
+  load_field(cg, g);
+  load_field(cn, c);
+  x = cubic_power_eval(g, s, t);
+  n = normalized_or(cubic_power_eval(c, s, t), fallback);
 }
 
-// eval_point at two grid points of the same patch (bases ba and bb): one read of the control
-// points for both, the same operations as two eval_point calls.
-__device__ __forceinline__ void eval_point2(const float ba[12], const float bb[12], const float* cg, const float* cn,
+// eval_point at two grid points of the same patch: one read of the power forms for both.
+__device__ __forceinline__ void eval_point2(float sa, float ta, float sb, float tb, const float* cg, const float* cn,
                                             V3 fallback, V3& xa, V3& na, V3& xb, V3& nb) {
-  float g[kCtrlStride], c[kCtrlStride];
-#pragma unroll
-  for (int i = 0; i < kCtrlStride / 4; ++i) {
-    const float4 q = reinterpret_cast<const float4*>(cg)[i], r = reinterpret_cast<const float4*>(cn)[i];
-    g[4 * i] = q.x, g[4 * i + 1] = q.y, g[4 * i + 2] = q.z, g[4 * i + 3] = q.w;
-    c[4 * i] = r.x, c[4 * i + 1] = r.y, c[4 * i + 2] = r.z, c[4 * i + 3] = r.w;
-  }
-  xa = v3(0, 0, 0), xb = v3(0, 0, 0);
-  V3 va = v3(0, 0, 0), vb = v3(0, 0, 0);
-#pragma unroll
-  for (int k = 0; k < 10; ++k) {
-    const V3 gk = v3(g[3 * k], g[3 * k + 1], g[3 * k + 2]), ck = v3(c[3 * k], c[3 * k + 1], c[3 * k + 2]);
-    xa += ba[k] * gk;
-    va += ba[k] * ck;
-    xb += bb[k] * gk;
-    vb += bb[k] * ck;
-  }
-  na = normalized_or(va, fallback);
-  nb = normalized_or(vb, fallback);
+  V3 g[10], c[10];
+  load_field(cg, g);
+  load_field(cn, c);
+  xa = cubic_power_eval(g, sa, ta);
+  xb = cubic_power_eval(g, sb, tb);
+  na = normalized_or(cubic_power_eval(c, sa, ta), fallback);
+  nb = normalized_or(cubic_power_eval(c, sb, tb), fallback);
 }
 
 // Output vertex of (patch p, grid point g) when p writes it, else -1 (corners are written by
@@ -343,19 +352,49 @@ __global__ void k_edge(PlanView pv, FrameView fv) {
 
 // ---------------------------------------------------------------- fused path
 
+// Where tessellate_interior finds an interior point's (s, t) (its PTS points' at once):
+// PlanOrderST, the plan's barycentric table (PlanView::grid_bary, global memory) through the
+// walk table GridInfo::order (the staged kernels); WalkST, k_inline's table of (s, t) in walk
+// order in shared memory, whose interior starts at an even index so that a thread's two
+// points are one 16-byte load (as one float4 a point with scalar loads of s and t, the loads
+// of a warp were 5-way bank conflicts: the shared-memory pipe is k_inline's busiest unit).
+struct PlanOrderST {
+  const GridInfo* gi;
+  const float4* bary;
+  int nb;  // boundary points: the walk's interior starts at nb
+  template <int PTS>
+  __device__ __forceinline__ void operator()(int jj, float s[PTS], float t[PTS]) const {
+#pragma unroll
+    for (int k = 0; k < PTS; ++k) grid_st(bary, gi[nb + jj + k].order, s[k], t[k]);
+  }
+};
+struct WalkST {
+  const float2* st;
+  int interior;  // index of the first interior point (even)
+  template <int PTS>
+  __device__ __forceinline__ void operator()(int jj, float s[PTS], float t[PTS]) const {
+    if constexpr (PTS == 2) {
+      const float4 q = *reinterpret_cast<const float4*>(st + interior + jj);
+      s[0] = q.x, t[0] = q.y, s[1] = q.z, t[1] = q.w;
+    } else {
+      const float2 q = st[interior + jj];
+      s[0] = q.x, t[0] = q.y;
+    }
+  }
+};
+
 // The interior points of a block's patches (tessellate_block, tessellate_listed), PTS
 // consecutive ones a thread (1, or 2 when no pair straddles two patches): each warp takes
-// 32 PTS consecutive points of the block's run and writes them with coalesced stores. The
-// thread's (patch q, interior point jj) advances by a constant step instead of a division a
-// point. ORDERED: gi and basis in walk order with barycentric points (k_inline's tables).
+// 32 PTS consecutive points of the block's run. The thread's (patch q, interior point jj)
+// advances by a constant step instead of a division a point. ST: PlanOrderST or WalkST.
 // LAST_FIRST: the block's last warp takes the first run (when the runs do not divide evenly,
 // the warps at the end take one more: k_inline's boundary list gives its extra points to the
-// first warps).
-template <int PTS, int kThreads, bool ORDERED, bool LAST_FIRST = false>
-__device__ __forceinline__ void tessellate_interior(const FrameView& fv, const GridInfo* __restrict__ gi,
-                                                    const float* __restrict__ basis, const PatchCtrl* ctrl,
-                                                    int n_int, int IG, int NB,
-                                                    long long o0, long long render_shift,
+// first warps). DIRECT: each thread stores its points straight from registers (PTS = 2: three
+// 8-byte stores a field, 8-byte aligned when the interior's first output and render vertex
+// are, as the evaluator's buffers have them) instead of through the staging buffer.
+template <int PTS, int kThreads, bool LAST_FIRST, bool DIRECT, class ST>
+__device__ __forceinline__ void tessellate_interior(const FrameView& fv, const ST& st, const PatchCtrl* ctrl,
+                                                    int n_int, int IG, long long o0, long long render_shift,
                                                     float* __restrict__ normals, float* staging) {
   constexpr int kRun = 32 * PTS, kStep = PTS * kThreads, kFloats = 3 * kRun;
   const int warp = LAST_FIRST ? kThreads / 32 - 1 - (int)threadIdx.x / 32 : threadIdx.x / 32, wl = threadIdx.x & 31;
@@ -370,26 +409,30 @@ __device__ __forceinline__ void tessellate_interior(const FrameView& fv, const G
     V3 x[PTS], n[PTS];
 #pragma unroll
     for (int k = 0; k < PTS; ++k) x[k] = n[k] = v3(0, 0, 0);
-    if (j0 + PTS * wl < n_int) {
-      float B[PTS][12];
-#pragma unroll
-      for (int k = 0; k < PTS; ++k) point_basis<ORDERED>(basis, ORDERED ? NB + jj + k : gi[NB + jj + k].order, B[k]);
+    const bool mine = j0 + PTS * wl < n_int;
+    if (mine) {
+      float s[PTS], t[PTS];
+      st.template operator()<PTS>(jj, s, t);
       if constexpr (PTS == 2)
-        eval_point2(B[0], B[1], ctrl[q][0], ctrl[q][1], load3(ctrl[q].fallback), x[0], n[0], x[1], n[1]);
+        eval_point2(s[0], t[0], s[1], t[1], ctrl[q][0], ctrl[q][1], load3(ctrl[q].fallback), x[0], n[0], x[1], n[1]);
       else
-        eval_point(B[0], ctrl[q][0], ctrl[q][1], load3(ctrl[q].fallback), x[0], n[0]);
+        eval_point(s[0], t[0], ctrl[q][0], ctrl[q][1], load3(ctrl[q].fallback), x[0], n[0]);
     }
     q += step_q, jj += step_j;
     if (jj >= IG) jj -= IG, ++q;
+    if (DIRECT) {
+      if (mine) {
+        store_points<PTS>(pos + 3 * PTS * wl, x);
+        store_points<PTS>(nrm + 3 * PTS * wl, n);
+      }
+      continue;
+    }
     // Coalesced stores: the warp's floats of each field go through its slice of shared memory
     // and lane l stores floats l, l + 32, ..., so each store instruction covers 32
     // consecutive floats (a plain store3 a lane touches every sector partially in three
     // passes: three times the L2 write traffic). No bounds checks when the warp's run is full.
-#pragma unroll
-    for (int k = 0; k < PTS; ++k) {
-      store3(bx + 3 * (PTS * wl + k), x[k]);
-      store3(bn + 3 * (PTS * wl + k), n[k]);
-    }
+    store_points<PTS>(bx + 3 * PTS * wl, x);
+    store_points<PTS>(bn + 3 * PTS * wl, n);
     __syncwarp();
     const int n3 = 3 * min(kRun, n_int - j0);
     if (n3 == kFloats) {
@@ -407,14 +450,15 @@ __device__ __forceinline__ void tessellate_interior(const FrameView& fv, const G
 
 // Tessellation of a block's PB fitted patches from shared memory (the staged kernels), one
 // thread a (patch, grid point): positions of the output vertices the patch owns, normals of
-// its render vertices. gi and basis: the plan's GridInfo and PlanView::grid_basis_padded in
-// global memory. staging: shared memory for the coalesced stores, tess_staging_floats floats.
+// its render vertices. gi and bary: the plan's GridInfo and PlanView::grid_bary in global
+// memory; ctrl: the Bernstein control points, which it turns into power form. staging:
+// shared memory for the coalesced stores, tess_staging_floats floats.
 // Every thread of the block must call it (it synchronizes the block once). k_inline has its
 // own walk (tessellate_listed, inline_kernels.cuh): grid tables in walk order in shared memory
 // and a list of the boundary points each group writes.
 template <int PB, int LANES>
 __device__ __forceinline__ void tessellate_block(const PlanView& pv, const FrameView& fv, const GridInfo* __restrict__ gi,
-                                                 const float* __restrict__ basis, PatchCtrl* ctrl, const int (*sedge)[3],
+                                                 const float4* __restrict__ bary, PatchCtrl* ctrl, const int (*sedge)[3],
                                                  const uint8_t* sflags, const PatchRender* srender, int base,
                                                  long long render_shift, float* __restrict__ normals, float* staging) {
   constexpr int kThreads = PB * LANES;
@@ -422,7 +466,11 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
   const int np = min(PB, pv.patches - base);
   const long long interior0 = pv.sub_vertices + (long long)pv.edges * (L - 1);
   const int IG = (L - 1) * (L - 2) / 2, NB = G - IG;
-  for (int q = threadIdx.x; q < np; q += kThreads) set_fallback_normal(ctrl[q]);
+  for (int q = threadIdx.x; q < np; q += kThreads) {
+    set_fallback_normal(ctrl[q]);
+    to_power_form(ctrl[q].g);
+    to_power_form(ctrl[q].n);
+  }
   __syncthreads();
   // Corners and edge points: one thread a (patch, point), scattered to their owners' slots.
   const int items = np * NB;
@@ -439,16 +487,17 @@ __device__ __forceinline__ void tessellate_block(const PlanView& pv, const Frame
     long long r = render_written(pv, srender[q], t, t.kind == 1 && ((f >> (3 + t.which)) & 1), -1, render_shift);
     if (r < 0 && o < 0) continue;
     V3 x, n;
-    float B[12];
-    point_basis<false>(basis, gp, B);
-    eval_point(B, ctrl[q][0], ctrl[q][1], load3(ctrl[q].fallback), x, n);
+    float s, tt;
+    grid_st(bary, gp, s, tt);
+    eval_point(s, tt, ctrl[q][0], ctrl[q][1], load3(ctrl[q].fallback), x, n);
     if (r >= 0) store3(normals + 3 * r, n);
     if (o >= 0) store3(fv.positions + 3 * o, x);
   }
   // Interior points: the block's are one contiguous run of output (and render) vertices.
   if (IG == 0) return;
   const long long o0 = interior0 + (long long)base * IG;
-  tessellate_interior<1, kThreads, false>(fv, gi, basis, ctrl, np * IG, IG, NB, o0, render_shift, normals, staging);
+  tessellate_interior<1, kThreads, false, false>(fv, PlanOrderST{gi, bary, NB}, ctrl, np * IG, IG, o0, render_shift,
+                                                normals, staging);
 }
 
 // Sum of v over the LANES lanes of a patch (a power of two, within one warp), in every lane.
@@ -539,8 +588,8 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
   }
   __syncthreads();
   __shared__ float staging[tess_staging_floats(PB * LANES)];
-  tessellate_block<PB, LANES>(pv, fv, gi, pv.grid_basis_padded, ctrl, sedge, sflags, srender, base, render_shift,
-                              normals, staging);
+  tessellate_block<PB, LANES>(pv, fv, gi, reinterpret_cast<const float4*>(pv.grid_bary), ctrl, sedge, sflags, srender,
+                              base, render_shift, normals, staging);
 }
 
 // Same fit and tessellation with fewer live registers (the default): the LANES threads of a
@@ -611,8 +660,8 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
   }
   __syncthreads();
   __shared__ float staging[tess_staging_floats(PB * LANES)];
-  tessellate_block<PB, LANES>(pv, fv, gi, pv.grid_basis_padded, ctrl, sedge, sflags, srender, base, render_shift,
-                              normals, staging);
+  tessellate_block<PB, LANES>(pv, fv, gi, reinterpret_cast<const float4*>(pv.grid_bary), ctrl, sedge, sflags, srender,
+                              base, render_shift, normals, staging);
 }
 
 #include "smoothffd/cuda/inline_kernels.cuh"
@@ -918,6 +967,9 @@ struct CudaEvaluator::Impl {
   int grid_env = 0;  // SMOOTHFFD_INLINE_GRID: k_inline blocks (experiments; 0: as many as fit)
   InlineArgs inline_args{};
   int box_env = -1;  // SMOOTHFFD_INLINE_BOXES=0: the per-sample weights even where boxes fit
+  // SMOOTHFFD_INLINE_DIRECT=1: k_inline stores its interior points straight from registers
+  // (tessellate_interior's DIRECT) instead of through its staging buffer.
+  bool inline_direct = false;
   std::vector<int> inline_grid;  // resident blocks of each k_inline instantiation (persistent grid)
   int* loose = nullptr;            // sub-vertices in no patch
   int loose_count = 0;
@@ -977,12 +1029,15 @@ struct CudaEvaluator::Impl {
       }
     }
     const int C = max_terms <= 2 ? 2 : max_terms == 3 ? 3 : 4;  // run_inline's kernels
-    const int boundary_points = p.grid - (p.level - 1) * (p.level - 2) / 2;
+    const int interior_points = (p.level - 1) * (p.level - 2) / 2, boundary_points = p.grid - interior_points;
     ia.list_stride = (32 * boundary_points + 7) / 8 * 8;
+    ia.walk_boundary = boundary_points;
+    ia.st_interior = (boundary_points + 1) / 2 * 2;
+    ia.st_count = ia.st_interior + interior_points;
     ia.boxes = (int)box_list.size();
-    if (ia.shared_bytes(p.columns, p.grid, C) > kInlineSharedBytes || points > kBoxPoints || box_env == 0)
+    if (ia.shared_bytes(p.columns, C) > kInlineSharedBytes || points > kBoxPoints || box_env == 0)
       ia.boxes = 0;  // the per-sample weights
-    inline_ok = max_terms <= 4 && n_pieces < 1024 && ia.shared_bytes(p.columns, p.grid, C) <= kInlineSharedBytes &&
+    inline_ok = max_terms <= 4 && n_pieces < 1024 && ia.shared_bytes(p.columns, C) <= kInlineSharedBytes &&
                 boundary_points <= 2048 &&  // the list's 11 bits of walk position
                 p.columns - 9 <= kMaxInlineGrid && constraint_columns_as_expected(p);
     if (!inline_ok) return;
@@ -1074,15 +1129,18 @@ struct CudaEvaluator::Impl {
     loose_count = (int)lv.size();
     if (loose_count) loose = arena.upload(lv);
     std::vector<InlinePatch> rec = build_patch_records(p, owns, pr, mine);
-    std::vector<float4> bary((size_t)p.grid);
+    // The walk's (s, t) table (WalkST), an even number of entries (copied as 16-byte pieces),
+    // and its boundary points' GridInfo.
+    std::vector<float2> st((size_t)(ia.st_count + 1) / 2 * 2, make_float2(0.0f, 0.0f));
     std::vector<GridInfo> walk((size_t)p.grid);
     for (int w = 0; w < p.grid; ++w) {
       const size_t g = (size_t)gi[w].order;
-      bary[w] = make_float4((float)tt.bary[3 * g], (float)tt.bary[3 * g + 1], (float)tt.bary[3 * g + 2], 0.0f);
+      const int i = w < boundary_points ? w : ia.st_interior + (w - boundary_points);
+      st[i] = make_float2((float)tt.bary[3 * g + 1], (float)tt.bary[3 * g + 2]);
       walk[w] = gi[g];
     }
-    ia.grid_bary = arena.upload(bary);
-    ia.grid_walk = arena.upload(walk);
+    ia.grid_st = arena.upload(st);
+    ia.grid_walk = arena.upload(std::vector<GridInfo>(walk.begin(), walk.begin() + boundary_points));
     // Each group's boundary list: the (patch, walk position) pairs that write a position or a
     // normal, in the order of the full walk (so neighbouring threads still store neighbouring
     // points of an edge).
@@ -1118,15 +1176,19 @@ struct CudaEvaluator::Impl {
   // patches until none is left.
   template <int C, int MINB>
   void launch_inline(int slot, size_t smem, const InlineControls& dp) {
-    if (inline_args.boxes > 0)
-      launch_inline_as<C, true, MINB>(2 * slot, smem, dp);
+    const bool boxes = inline_args.boxes > 0;
+    slot = 4 * slot + 2 * boxes + inline_direct;
+    if (boxes)
+      inline_direct ? launch_inline_as<C, true, MINB, true>(slot, smem, dp)
+                    : launch_inline_as<C, true, MINB, false>(slot, smem, dp);
     else
-      launch_inline_as<C, false, MINB>(2 * slot + 1, smem, dp);
+      inline_direct ? launch_inline_as<C, false, MINB, true>(slot, smem, dp)
+                    : launch_inline_as<C, false, MINB, false>(slot, smem, dp);
   }
 
-  template <int C, bool BOXES, int MINB>
+  template <int C, bool BOXES, int MINB, bool DIRECT>
   void launch_inline_as(int slot, size_t smem, const InlineControls& dp) {
-    auto kern = k_inline<C, BOXES, 32, 4, MINB>;
+    auto kern = k_inline<C, BOXES, 32, 4, MINB, DIRECT>;
     if (inline_grid.size() <= (size_t)slot) inline_grid.resize(slot + 1, 0);
     if (inline_grid[slot] == 0) {
       int per_sm = 0, sms = 0, dev = 0;
@@ -1149,7 +1211,7 @@ struct CudaEvaluator::Impl {
   // loose vertices when the mesh has any.
   template <int C, class Mark>
   void run_inline_c(Mark& mark) {
-    const size_t smem = inline_args.shared_bytes(pv.columns, pv.grid, C);
+    const size_t smem = inline_args.shared_bytes(pv.columns, C);
     InlineControls dp;
     if (inline_params()) std::memcpy(dp.v, h_D.ptr, nD * sizeof(float));
     if (loose_count > 0) {
@@ -1308,6 +1370,7 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
     m.sample_blocks = std::string(b) == "fixed" ? -1 : std::atoi(b);
   if (const char* b = std::getenv("SMOOTHFFD_FUSED_BLOCKS")) m.fused_blocks = std::atoi(b);
   if (const char* b = std::getenv("SMOOTHFFD_INLINE_BOXES")) m.box_env = std::atoi(b);
+  if (const char* b = std::getenv("SMOOTHFFD_INLINE_DIRECT")) m.inline_direct = std::atoi(b) != 0;
   if (const char* g = std::getenv("SMOOTHFFD_INLINE_GRID")) m.grid_env = std::atoi(g);
   if (const char* ff = std::getenv("SMOOTHFFD_FUSED_FIT"))
     m.fused_fit = std::string(ff) == "regs" ? 1 : std::string(ff) == "staged" ? 0 : -1;
@@ -1344,11 +1407,12 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
   v.edge_slot = a.upload(p.edge_slot);
   v.edge_flags = a.upload(p.edge_flags);
   v.grid_basis = a.upload(p.grid_basis);
+  const TessellationTables tt = build_tessellation(p.level);
   {
-    std::vector<float> padded(12 * (size_t)p.grid, 0.0f);
+    std::vector<float> bary(4 * (size_t)p.grid, 0.0f);
     for (int g = 0; g < p.grid; ++g)
-      for (int k = 0; k < 10; ++k) padded[12 * (size_t)g + k] = p.grid_basis[10 * (size_t)g + k];
-    v.grid_basis_padded = a.upload(padded);
+      for (int k = 0; k < 3; ++k) bary[4 * (size_t)g + k] = (float)tt.bary[3 * (size_t)g + k];
+    v.grid_bary = a.upload(bary);
   }
   v.local_triangles = a.upload(p.local_triangles);
   v.output_owner = a.upload(p.output_owner);
@@ -1357,7 +1421,6 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
   v.render_owner = v.render_position = v.patch_grid_render = v.render_triangles = nullptr;
 
   // Which patch writes each edge's tessellation points, and the grid point table.
-  TessellationTables tt = build_tessellation(p.level);
   std::vector<GridInfo> gi(tt.points.size());
   for (size_t g = 0; g < gi.size(); ++g) gi[g] = {tt.points[g].kind, tt.points[g].which, tt.points[g].step, -1};
   {
@@ -1396,10 +1459,15 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
   f.edge_control = a.alloc<float>(6 * E);
   f.patch_control = a.alloc<float>(60 * P);
   f.patch_normal = f.patch_control + 30 * P;
-  f.positions = a.alloc<float>(3 * N);
+  // The interior's first output vertex (and its render vertex) 16-byte aligned, so that every
+  // run of interior points starts 16-byte aligned (wide stores): the buffers start 0-3 floats
+  // into their allocations.
+  const long long interior0 = p.sub_vertices + (long long)p.edges * (p.level - 1);
+  auto lead = [](long long first) { return (int)((4 - (3 * first) % 4) % 4); };
+  f.positions = a.alloc<float>(3 * N + 3) + lead(interior0);
   f.corner_normals = nullptr;
   (void)G;
-  m.normals = a.alloc<float>(3 * (long long)p.render_vertices);
+  m.normals = a.alloc<float>(3 * (long long)p.render_vertices + 3) + lead(interior0 + m.render_shift);
   if (m.path == kCublas) m.ensure_cublas();
   CK(cudaDeviceSynchronize());
 }

@@ -111,10 +111,13 @@ struct InlineArgs {
   // per-sample weights are used. box_list: each box's three pieces (indices into `pieces`).
   const int4* box_list;
   int boxes;
-  // The tessellation grid in the order tessellate_listed walks it (the ORDERED mode: entry g
-  // is grid point gi[g].order of the plan's tables): GridInfo and barycentric point (w = 0).
+  // The tessellation grid in the order tessellate_listed walks it (entry g is grid point
+  // gi[g].order of the plan's tables): the boundary points' GridInfo (walk_boundary of them),
+  // and every point's parameters (s, t) (grid_st), the interior from index st_interior (the
+  // boundary count rounded up to even: WalkST), st_count entries in all.
   const GridInfo* grid_walk;
-  const float4* grid_bary;
+  const float2* grid_st;
+  int walk_boundary, st_interior, st_count;
   const InlinePatch* patch_rec;  // P
   // Per group of 32 patches, a slot of list_stride entries (a multiple of 8): the boundary
   // points (corners and edge points) its patches write, in walk order, each as
@@ -124,14 +127,16 @@ struct InlineArgs {
   const uint16_t* boundary_list;
   int list_stride;
   float mrow[11][9];
-  // Dynamic shared memory: control values, pieces, columns, the grid's barycentric points and
-  // GridInfo (G points), the boxes and their list, a group's boundary list, the ColumnMap.
-  // With boxes the control values are staged in the block's ctrl table (kBoxPoints at most)
-  // only while the boxes are computed.
-  size_t shared_bytes(int K, int G, int C) const {
-    return 16 * ((boxes > 0 ? 0 : (size_t)points) + 6 * (size_t)n_pieces + (size_t)K + 2 * (size_t)G +
-                 (size_t)boxes * (C * C * C + 1)) +
-           2 * (size_t)list_stride + sizeof(ColumnMap);
+  // Dynamic shared memory: control values, pieces, columns, the grid's (s, t) table and the
+  // boundary points' GridInfo, the boxes and their list, a group's boundary list, the
+  // ColumnMap, in 16-byte units. With boxes the control values are staged in the block's ctrl
+  // table (kBoxPoints at most) only while the boxes are computed.
+  size_t shared_units(int K, int C) const {
+    return (boxes > 0 ? 0 : (size_t)points) + 6 * (size_t)n_pieces + (size_t)K + ((size_t)st_count + 1) / 2 +
+           (size_t)walk_boundary + (size_t)boxes * (C * C * C + 1);
+  }
+  size_t shared_bytes(int K, int C) const {
+    return 16 * shared_units(K, C) + 2 * (size_t)list_stride + sizeof(ColumnMap);
   }
 };
 
@@ -376,21 +381,21 @@ __device__ __forceinline__ void sample_box(const float4* __restrict__ boxes, con
 }
 
 // tessellate_block's work for k_inline's group of patches (ctrl, already with their fallback
-// normals), in the walk order of the grid (gi, basis: GridInfo and barycentric points in walk
+// normals and in power form), in the walk order of the grid (gi, bary: GridInfo and barycentric points in walk
 // order, shared memory): first the boundary points the group writes, from its list (list:
 // InlineArgs::boundary_list's entries, sbound: the patches' PatchBoundary tables), one thread
 // a point, so that no thread idles beside the others on a point another patch owns; then
 // between() (the next group's first sample records); then the interior points, which every
 // patch writes, as tessellate_block has them.
-template <int kThreads, class Between>
+template <int kThreads, bool DIRECT, class Between>
 __device__ __forceinline__ void tessellate_listed(const PlanView& pv, const FrameView& fv, const GridInfo* __restrict__ gi,
-                                                  const float* __restrict__ basis, const PatchCtrl* ctrl,
+                                                  const WalkST& st, const PatchCtrl* ctrl,
                                                   const PatchBoundary* sbound, const uint16_t* list, int base,
                                                   long long render_shift, float* __restrict__ normals, float* staging,
                                                   Between between) {
-  const int L = pv.level, G = pv.grid;
+  const int L = pv.level;
   const int np = min(kThreads / 4, pv.patches - base);
-  const int IG = (L - 1) * (L - 2) / 2, NB = G - IG;
+  const int IG = (L - 1) * (L - 2) / 2;
   const int items = sbound[0].items;
   for (int i = threadIdx.x; i < items; i += kThreads) {
     const uint32_t e = list[i];
@@ -405,9 +410,8 @@ __device__ __forceinline__ void tessellate_listed(const PlanView& pv, const Fram
       r = b.z + t.step * b.w;
     }
     V3 x, n;
-    float B[12];
-    point_basis<true>(basis, w, B);
-    eval_point(B, ctrl[q][0], ctrl[q][1], load3(ctrl[q].fallback), x, n);
+    const float2 p = st.st[w];
+    eval_point(p.x, p.y, ctrl[q][0], ctrl[q][1], load3(ctrl[q].fallback), x, n);
     if (r >= 0) store3(normals + 3 * (long long)r, n);
     if (o >= 0) store3(fv.positions + 3 * (long long)o, x);
   }
@@ -416,11 +420,9 @@ __device__ __forceinline__ void tessellate_listed(const PlanView& pv, const Fram
   const long long o0 = pv.sub_vertices + (long long)pv.edges * (L - 1) + (long long)base * IG;
   // The warps whose threads took one boundary point more take their interior runs last.
   if (IG % 2 == 0)
-    tessellate_interior<2, kThreads, true, true>(fv, gi, basis, ctrl, np * IG, IG, NB, o0, render_shift, normals,
-                                                 staging);
+    tessellate_interior<2, kThreads, true, DIRECT>(fv, st, ctrl, np * IG, IG, o0, render_shift, normals, staging);
   else
-    tessellate_interior<1, kThreads, true, true>(fv, gi, basis, ctrl, np * IG, IG, NB, o0, render_shift, normals,
-                                                 staging);
+    tessellate_interior<1, kThreads, true, DIRECT>(fv, st, ctrl, np * IG, IG, o0, render_shift, normals, staging);
 }
 
 // One kernel a frame, persistent: each block stages the lattice tables once, then takes
@@ -433,14 +435,19 @@ __device__ __forceinline__ void tessellate_listed(const PlanView& pv, const Fram
 //    per-patch tables out of the patch records;
 // 4. lane 0: finish_patch_from; then the block tessellates its patches, and meanwhile the
 //    next group's patch records (InlinePatch) arrive in shared memory (cp.async).
-template <int C, bool BOXES, int PB, int LANES, int MINB>
+template <int C, bool BOXES, int PB, int LANES, int MINB, bool DIRECT>
 __global__ void __launch_bounds__(PB* LANES, MINB)
     k_inline(PlanView pv, FrameView fv, InlineArgs ia, InlineControls dparam, long long render_shift,
              float* __restrict__ normals) {
   static_assert(LANES == 4, "lanes 0-2 take a component / an edge each, lane 3 the tables");
   extern __shared__ float4 lattice_shared[];
   __shared__ PatchCtrl ctrl[PB];
-  __shared__ float stage[PB][9][6];       // constraint column j: x (0-2), n (3-5)
+  // Constraint column j of patch q: stage[q][j], x (0-2), n (3-5); during the tessellation the
+  // staging of its coalesced stores.
+  constexpr int kStageFloats = PB * 9 * 6 > tess_staging_floats(PB * LANES, 2) ? PB * 9 * 6
+                                                                                : tess_staging_floats(PB * LANES, 2);
+  __shared__ __align__(16) float stage_mem[kStageFloats];
+  float(*stage)[9][6] = reinterpret_cast<float(*)[9][6]>(stage_mem);
   __shared__ float corner_jac[PB][3][9];  // Jacobians at the corners (constraint columns 0-2)
   __shared__ float geo[PB][2][3];         // fitted centre, sum of the fitted edge control points
   __shared__ InlinePatch srec[PB];        // the group's patch records
@@ -450,9 +457,9 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
   float4* sD = BOXES ? reinterpret_cast<float4*>(&ctrl[0]) : lattice_shared;
   InlinePiece* sP = reinterpret_cast<InlinePiece*>(lattice_shared + (BOXES ? 0 : ia.points));
   float4* sCol = reinterpret_cast<float4*>(sP + ia.n_pieces);
-  float4* sBary = sCol + K;  // G barycentric points (ia.grid_bary), in walk order
-  GridInfo* sGi = reinterpret_cast<GridInfo*>(sBary + pv.grid);
-  float4* sBox = reinterpret_cast<float4*>(sGi + pv.grid);  // BOXES: boxes x C^3
+  float2* sST = reinterpret_cast<float2*>(sCol + K);  // ia.grid_st: (s, t) in walk order
+  GridInfo* sGi = reinterpret_cast<GridInfo*>(sCol + K + (ia.st_count + 1) / 2);  // the boundary points'
+  float4* sBox = reinterpret_cast<float4*>(sGi + ia.walk_boundary);  // BOXES: boxes x C^3
   int4* sBoxList = reinterpret_cast<int4*>(sBox + (BOXES ? ia.boxes * C * C * C : 0));  // BOXES: ia.box_list
   uint16_t* sList = reinterpret_cast<uint16_t*>(sBoxList + (BOXES ? ia.boxes : 0));  // a group's boundary list
   ColumnMap* sMap = reinterpret_cast<ColumnMap*>(sList + ia.list_stride);
@@ -517,8 +524,8 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     };
     copy16(sP, ia.pieces, 6 * ia.n_pieces);
     copy16(sCol, ia.column, K);
-    copy16(sBary, ia.grid_bary, pv.grid);
-    copy16(sGi, ia.grid_walk, pv.grid);
+    copy16(sST, ia.grid_st, (ia.st_count + 1) / 2);
+    copy16(sGi, ia.grid_walk, ia.walk_boundary);
     if (BOXES) copy16(sBoxList, ia.box_list, ia.boxes);
     for (int i = threadIdx.x; i < (int)(sizeof(ColumnMap) / 4); i += blockDim.x)
       __pipeline_memcpy_async(reinterpret_cast<int*>(sMap) + i, reinterpret_cast<const int*>(ia.column_map) + i, 4);
@@ -600,13 +607,19 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
 #pragma unroll
       for (int q = 0; q < 9; ++q) xs[q] = stage[lp][q][c], ns[q] = stage[lp][q][3 + c];
       const float gcc = c == 0 ? gc.x : c == 1 ? gc.y : gc.z, ncc = c == 0 ? nc.x : c == 1 ? nc.y : nc.z;
+      // In power form for the tessellation (eval_point), and the fallback normal's component
+      // (set_fallback_normal's sum of the corners, normalized by lane 0 below).
+      float acc[10], pf[10];
 #pragma unroll
       for (int r = 0; r < 10; ++r) {
-        float acc = r == kCentre ? ncc : 0.0f;
+        acc[r] = r == kCentre ? ncc : 0.0f;
 #pragma unroll
-        for (int q = 0; q < 9; ++q) acc += ia.mrow[r][q] * ns[q];
-        ctrl[lp][1][3 * r + c] = acc;
+        for (int q = 0; q < 9; ++q) acc[r] += ia.mrow[r][q] * ns[q];
       }
+      ctrl[lp].fallback[c] = acc[0] + acc[1] + acc[2];
+      cubic_power_form(acc, pf);
+#pragma unroll
+      for (int r = 0; r < 10; ++r) ctrl[lp][1][3 * r + c] = pf[r];
       float cen = gcc, esum = 0.0f;
 #pragma unroll
       for (int q = 0; q < 9; ++q) {
@@ -639,27 +652,30 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     __syncwarp();
     if (live && lane == 0) {
       // finish_patch_from (stages.hpp): exact corners, adjusted edges (lanes 0-2 put both
-      // in place), the centre moved with the edges.
+      // in place), the centre moved with the edges; then the patch in power form for the
+      // tessellation (eval_point), written back in one pass.
       const uint32_t mine = rec.flags >> 8;
-      float* g = ctrl[lp][0];
+      V3 b[10], a[10];
+      load_field(ctrl[lp][0], b);
       V3 adjusted = v3(0, 0, 0);
       for (int k = 0; k < 3; ++k) {
-        adjusted += load3(g + 3 * edge_control_index(k, false)) + load3(g + 3 * edge_control_index(k, true));
-        if ((mine >> k) & 1) store3(fv.positions + 3 * (long long)rec.vertex[k], load3(stage[lp][k]));
+        adjusted += b[edge_control_index(k, false)] + b[edge_control_index(k, true)];
+        if ((mine >> k) & 1) store3(fv.positions + 3 * (long long)rec.vertex[k], b[k]);
       }
-      const V3 centre = load3(geo[lp][0]) + 0.25f * (adjusted - load3(geo[lp][1]));
-      store3(g + 3 * kCentre, centre);
-      set_fallback_normal(ctrl[lp]);  // before the barrier below, not behind one more
+      b[kCentre] = load3(geo[lp][0]) + 0.25f * (adjusted - load3(geo[lp][1]));
+      cubic_power_form(b, a);
+      store_field(ctrl[lp][0], a);
+      // The fallback normal from the corners' sum (lanes 0-2), before the barrier below.
+      store3(ctrl[lp].fallback, normalized_or(load3(ctrl[lp].fallback), v3(0, 0, 1)));
     }
     __pipeline_wait_prior(0);  // the boundary list
     __syncthreads();
     // 4. Tessellation.
-    static_assert(sizeof(stage) >= sizeof(float) * tess_staging_floats(PB * LANES, true), "staging fits in stage");
     const int next = group + gridDim.x;
     fetch_patch_records(next);
     fetch_indices(next, sMap);
-    tessellate_listed<PB * LANES>(pv, fv, sGi, reinterpret_cast<const float*>(sBary), ctrl, sbound, sList, base,
-                                  render_shift, normals, &stage[0][0][0], [&] { fetch_records(next, n_cols); });
+    tessellate_listed<PB * LANES, DIRECT>(pv, fv, sGi, WalkST{sST, ia.st_interior}, ctrl, sbound, sList, base,
+                                  render_shift, normals, stage_mem, [&] { fetch_records(next, n_cols); });
     __pipeline_wait_prior(0);
     __syncthreads();  // the next group's records are in; it overwrites the block's tables
   }

@@ -40,4 +40,44 @@ SFFD_HD void cubic_basis(const T b[3], T out[10]) {
   out[9] = 6 * b0 * b1 * b2;
 }
 
+// Power form of a cubic patch about corner 0: with s = b1, t = b2 (b0 = 1 - s - t) the patch
+// is sum over j + k <= 3 of a_jk s^j t^k, a_jk = 3! / ((3-j-k)! j! k!) D1^j D2^k b300 (forward
+// differences D1 = b(i-1, j+1, k) - b(i, j, k), D2 = b(i-1, j, k+1) - b(i, j, k)). Why: a grid
+// point then costs 9 multiply-adds a coordinate (cubic_power_eval) instead of the 10 basis
+// values (cubic_basis: about 20 multiplies) and 10 multiply-adds of the Bernstein sum; every
+// term beyond a00 is a difference of control points, so its rounding is relative to the
+// patch's size, not to its distance from the origin. Coefficient order:
+enum CubicPowerTerm { kA00, kA10, kA01, kA20, kA11, kA02, kA30, kA21, kA12, kA03 };
+
+// a (power form, CubicPowerTerm order) from b (Bernstein, the control point order above). T:
+// float or V3 (anything with +, - and float *).
+template <class T>
+SFFD_HD void cubic_power_form(const T b[10], T a[10]) {
+  const T d10 = b[3] - b[0], d01 = b[8] - b[0];  // D1 b300, D2 b300
+  const T e20 = b[4] - b[3], e02 = b[7] - b[8];  // D1 b210, D2 b201
+  const T f11 = b[9] - b[3], g11 = b[9] - b[8];  // D2 b210, D1 b201
+  const T h20 = e20 - d10, h02 = e02 - d01;      // D1^2 b300, D2^2 b300
+  a[kA00] = b[0];
+  a[kA10] = 3.0f * d10;
+  a[kA01] = 3.0f * d01;
+  a[kA20] = 3.0f * h20;
+  a[kA11] = 6.0f * (f11 - d01);
+  a[kA02] = 3.0f * h02;
+  a[kA30] = (b[1] - b[4]) - 2.0f * e20 + d10;
+  a[kA21] = 3.0f * ((b[5] - b[9]) - g11 - h20);
+  a[kA12] = 3.0f * ((b[6] - b[9]) - f11 - h02);
+  a[kA03] = (b[2] - b[7]) - 2.0f * e02 + d01;
+}
+
+// The patch at (s, t) from its power form: Horner in t for each power of s, then in s (9
+// multiply-adds for a float; a00 is added last but one, so the small terms are summed first).
+template <class T>
+SFFD_HD T cubic_power_eval(const T a[10], float s, float t) {
+  const T c2 = a[kA20] + t * a[kA21];
+  const T c1 = a[kA10] + t * (a[kA11] + t * a[kA12]);
+  const T c0 = a[kA01] + t * (a[kA02] + t * a[kA03]);
+  const T x = c1 + s * (c2 + s * a[kA30]);
+  return (a[kA00] + t * c0) + s * x;
+}
+
 }  // namespace sffd

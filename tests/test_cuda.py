@@ -379,17 +379,19 @@ def test_large_lattice_inline_copies_controls(path):
     assert "upload" in times
 
 
-def test_high_level_falls_back_to_staged_kernels():
-    """A level whose tessellation grid does not fit the inline kernel's shared tables (here 45:
-    1081 grid points, 32 bytes each, beyond the 28 KB table) runs the staged kernels; the
-    result still matches the CPU."""
+@pytest.mark.parametrize("level,inline", [(45, True), (64, False)])
+def test_high_levels_inline_or_staged(level, inline):
+    """High levels: 45 still fits the inline kernel's shared tables (1081 grid points, 8 bytes
+    of (s, t) each, plus the 135 boundary points' tables and list); 64 (2145 grid points) does
+    not and runs the staged kernels. Either way the result matches the CPU."""
     rng = np.random.default_rng(80)
     lat = bspline(rng)
-    check(icosphere(1), lat, level=45, path="fused")
-    plan = smoothffd.Deformer(icosphere(1), lat, level=45, device="cpu").plan
-    times = _core.CudaEvaluator(plan, "fused").evaluate_device(
-        np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32))
-    assert "sampling" in times and "sample_fit_tessellate" not in times
+    check(icosphere(1), lat, level=level, path="fused")
+    plan = smoothffd.Deformer(icosphere(1), lat, level=level, device="cpu").plan
+    ev = _core.CudaEvaluator(plan, "fused")
+    times = ev.evaluate_device(np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32))
+    assert ev.fused_kernel.startswith("inline") == inline
+    assert ("sample_fit_tessellate" in times) == inline and ("sampling" in times) != inline
 
 
 def rotated_blender(rng, angle=0.35, scale=1.4):

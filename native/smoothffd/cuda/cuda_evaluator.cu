@@ -884,6 +884,40 @@ std::vector<InlinePatch> build_patch_records(const Plan& p, const std::vector<ui
   return rec;
 }
 
+// Each patch record's corner samples and the box of each evaluated column's sample
+// (InlinePatch::corner, box), and the check that inline_sample_point puts every sample where
+// the plan has it (within rounding: the plan rounds its double positions to float), so that
+// k_inline needs no per-sample records. False when a sample is not where expected.
+bool place_samples(const Plan& p, const std::vector<InlineColumn>& col, const std::vector<int>& evaluated,
+                   const std::vector<uint32_t>& box_of, std::vector<InlinePatch>& rec) {
+  const int K = p.columns;
+  std::atomic<bool> ok{true};
+  parallel_for(p.patches, default_threads(), [&](long long b, long long e) {
+    for (long long q = b; q < e; ++q) {
+      InlinePatch& r = rec[q];
+      for (int c = 0; c < 3; ++c) {
+        const size_t v = (size_t)p.patch_vertex[3 * q + c];
+        r.corner[c] = make_float4(p.sample_position[3 * v], p.sample_position[3 * v + 1], p.sample_position[3 * v + 2],
+                                  p.sample_weight[v]);
+      }
+      std::fill(std::begin(r.box), std::end(r.box), uint8_t(0));
+      for (size_t i = 0; i < evaluated.size(); ++i) {
+        const size_t s = (size_t)p.patch_samples[(size_t)q * K + evaluated[i]];
+        r.box[i] = (uint8_t)box_of[s];
+        const float4 x = inline_sample_point(col[evaluated[i]], r.flags, r.corner[0], r.corner[1], r.corner[2]);
+        const float got[4] = {x.x, x.y, x.z, x.w};
+        for (int a = 0; a < 4; ++a) {
+          const float want = a < 3 ? p.sample_position[3 * s + a] : p.sample_weight[s];
+          const float scale = std::max({1.0f, std::fabs(r.corner[0].x), std::fabs(r.corner[0].y),
+                                        std::fabs(r.corner[0].z), std::fabs(want)});
+          if (!(std::fabs(got[a] - want) <= 2e-6f * scale)) ok = false;
+        }
+      }
+    }
+  });
+  return ok;
+}
+
 }  // namespace
 
 std::pair<bool, std::string> cuda_status() {
@@ -1023,7 +1057,7 @@ struct CudaEvaluator::Impl {
         if (it.second) {
           int b[3];
           for (int a = 0; a < 3; ++a) b[a] = p.axis_offset[a] + (int)((p.sample_piece[s] >> (10 * a)) & 1023u);
-          box_list.push_back(make_int4(b[0], b[1], b[2], 0));
+          box_list.push_back(make_int4(b[0], b[1], b[2], b[0] | b[1] << 10 | b[2] << 20));
         }
         box_of[s] = it.first->second;
       }
@@ -1034,11 +1068,12 @@ struct CudaEvaluator::Impl {
     ia.walk_boundary = boundary_points;
     ia.st_interior = (boundary_points + 1) / 2 * 2;
     ia.st_count = ia.st_interior + interior_points;
-    ia.boxes = (int)box_list.size();
+    ia.box_count = ia.boxes = (int)box_list.size();
     if (ia.shared_bytes(p.columns, C) > kInlineSharedBytes || points > kBoxPoints || box_env == 0)
       ia.boxes = 0;  // the per-sample weights
     inline_ok = max_terms <= 4 && n_pieces < 1024 && ia.shared_bytes(p.columns, C) <= kInlineSharedBytes &&
                 boundary_points <= 2048 &&  // the list's 11 bits of walk position
+                ia.box_count <= 256 &&    // InlinePatch::box, a byte
                 p.columns - 9 <= kMaxInlineGrid && constraint_columns_as_expected(p);
     if (!inline_ok) return;
     ia.box_list = arena.upload(box_list);
@@ -1062,10 +1097,35 @@ struct CudaEvaluator::Impl {
         cm.extra[cm.n_extra++] = int8_t(j);
     }
     ia.column_map = arena.upload(std::vector<ColumnMap>{cm});
-    std::vector<float4> col((size_t)K);
-    for (int k = 0; k < K; ++k)
-      col[k] = make_float4(p.column_bary[3 * k], p.column_bary[3 * k + 1], p.column_bary[3 * k + 2],
-                           k < K0 ? p.fit_matrix[(size_t)kCentre * K + k] : 0.0f);
+    // The evaluated columns in the kernel's order: the grid's, then the extra constraint ones.
+    std::vector<int> evaluated;
+    for (int k = 0; k < K0; ++k) evaluated.push_back(k);
+    for (int j = 0; j < cm.n_extra; ++j) evaluated.push_back(K0 + cm.extra[j]);
+    if ((int)evaluated.size() > kMaxInlineColumns) {
+      inline_ok = false;
+      return;
+    }
+    // Where each column's sample lies (InlineColumn): its barycentric point has exactly 1 at a
+    // corner and exactly 0 at the corner opposite an edge; the edge parameter is the plan's
+    // numerator over 3n, from either end.
+    const int N3 = 3 * p.fit_degree;
+    std::vector<InlineColumn> col((size_t)K);
+    for (int k = 0; k < K; ++k) {
+      const float* b = &p.column_bary[3 * (size_t)k];
+      InlineColumn& c = col[k];
+      c.bary = make_float4(b[0], b[1], b[2], k < K0 ? p.fit_matrix[(size_t)kCentre * K + k] : 0.0f);
+      c.t_fwd = c.t_rev = 0.0f;
+      c.edge = c.corner = -1;
+      for (int i = 0; i < 3; ++i) {
+        if (b[i] == 1.0f) c.corner = i;
+        if (b[i] == 0.0f && b[(i + 1) % 3] != 0.0f && b[(i + 2) % 3] != 0.0f) {
+          c.edge = (i + 1) % 3;  // the edge from corner i + 1 to i + 2
+          const long long q = std::llround((double)b[(i + 2) % 3] * N3);  // the far corner's numerator
+          c.t_fwd = (float)(q / (double)N3);
+          c.t_rev = (float)((N3 - q) / (double)N3);
+        }
+      }
+    }
     ia.column = arena.upload(col);
     // M_r's last 9 columns, and the sum of its six edge rows in the order finish_patch_from
     // adds the fitted edge control points (edge k: the point next to corner k, then k + 1).
@@ -1101,18 +1161,6 @@ struct CudaEvaluator::Impl {
       }
     }
     ia.pieces = arena.upload(pcs);
-    // Per sample: position and weight in one 16-byte record, the pieces as table indices.
-    std::vector<float4> pw((size_t)p.samples);
-    std::vector<uint2> box((size_t)p.samples);
-    for (int s = 0; s < p.samples; ++s) {
-      pw[s] = make_float4(p.sample_position[3 * (size_t)s], p.sample_position[3 * (size_t)s + 1],
-                          p.sample_position[3 * (size_t)s + 2], p.sample_weight[s]);
-      uint32_t b = 0;
-      for (int a = 0; a < 3; ++a) b |= uint32_t(p.axis_offset[a] + ((p.sample_piece[s] >> (10 * a)) & 1023u)) << (10 * a);
-      box[s] = make_uint2(b, box_of[s]);
-    }
-    ia.sample_pw = arena.upload(pw);
-    ia.sample_box = arena.upload(box);
     std::vector<uint8_t> mine((size_t)p.patches, 0);
     std::vector<char> seen((size_t)p.sub_vertices, 0);
     for (int q = 0; q < p.patches; ++q)
@@ -1129,6 +1177,10 @@ struct CudaEvaluator::Impl {
     loose_count = (int)lv.size();
     if (loose_count) loose = arena.upload(lv);
     std::vector<InlinePatch> rec = build_patch_records(p, owns, pr, mine);
+    if (!place_samples(p, col, evaluated, box_of, rec)) {
+      inline_ok = false;
+      return;
+    }
     // The walk's (s, t) table (WalkST), an even number of entries (copied as 16-byte pieces),
     // and its boundary points' GridInfo.
     std::vector<float2> st((size_t)(ia.st_count + 1) / 2 * 2, make_float2(0.0f, 0.0f));

@@ -50,6 +50,45 @@ struct ColumnMap {
 };
 static_assert(sizeof(ColumnMap) == 76, "ColumnMap is staged as 19 words");
 
+// Columns k_inline evaluates a patch (the grid's and the extra constraint columns): at most
+// 55 + 9 for C <= 4.
+constexpr int kMaxInlineColumns = 64;
+
+// A fitting column as k_inline reads it (shared memory, 32 bytes): its barycentric point and
+// centre-row coefficient (0 for constraint columns), and where its sample lies: at corner
+// `corner`, on patch edge `edge` (corner edge -> edge + 1) at parameter t_fwd from the
+// edge's first corner (t_rev = 1 - t_fwd, exactly, from the other), or inside (both -1).
+struct __align__(16) InlineColumn {
+  float4 bary;
+  float t_fwd, t_rev;
+  int edge, corner;
+};
+
+// Position and vertex weight of the sample of column c of a patch whose corners' samples are
+// P0-P2 (InlinePatch::corner) and whose edge k runs against its edge's own direction when
+// bit 3 + k of flags is set: the plan's samples (plan.cpp, step 5) recomputed in float, with
+// no gather. A sample on an edge is the same lerp from the edge's first vertex on both of its
+// patches (the same operands, the same instructions: bitwise the same point, so both still
+// compute bitwise the same edge control points); one inside is P0 + b1 (P1 - P0) + b2 (P2 -
+// P0). CudaEvaluator checks every sample against the plan's once per plan.
+__host__ __device__ __forceinline__ float4 inline_sample_point(const InlineColumn& c, uint32_t flags, float4 P0,
+                                                                float4 P1, float4 P2) {
+  auto pick = [&](int i) { return i == 0 ? P0 : i == 1 ? P1 : P2; };
+  auto lerp = [](float t, float4 a, float4 b) {
+    return make_float4(fmaf(t, b.x - a.x, a.x), fmaf(t, b.y - a.y, a.y), fmaf(t, b.z - a.z, a.z),
+                       fmaf(t, b.w - a.w, a.w));
+  };
+  if (c.corner >= 0) return pick(c.corner);
+  if (c.edge >= 0) {
+    const bool rev = (flags >> (3 + c.edge)) & 1u;
+    const int k1 = c.edge == 2 ? 0 : c.edge + 1;
+    return rev ? lerp(c.t_rev, pick(k1), pick(c.edge)) : lerp(c.t_fwd, pick(c.edge), pick(k1));
+  }
+  const float4 a = lerp(c.bary.y, P0, P1);  // P0 + b1 (P1 - P0)
+  return make_float4(fmaf(c.bary.z, P2.x - P0.x, a.x), fmaf(c.bary.z, P2.y - P0.y, a.y),
+                     fmaf(c.bary.z, P2.z - P0.z, a.z), fmaf(c.bary.z, P2.w - P0.w, a.w));
+}
+
 // What k_inline's tessellation needs to place a patch's boundary points (corners and edge
 // points), built once per plan (CudaEvaluator::Impl::build_inline_tables): with edge k's
 // record {obase, ostep, rbase, rstep}, the point at step s (1 .. L - 1 from corner k, the
@@ -82,6 +121,10 @@ struct __align__(16) PatchBoundary {
 //       non-manifold (4) and has-a-second-patch (8) bits, at 24 + k: this patch is side 1 of
 //       edge k (edge_control_points' p1);
 //   bound: where its boundary points go (PatchBoundary).
+//   corner: the corners' samples (position, vertex weight), from which k_inline places every
+//       sample of the patch (inline_sample_point);
+//   box: the lattice box (index into InlineArgs::box_list) of the sample of each evaluated
+//       column (in the order of k_inline's column loop).
 struct __align__(16) InlinePatch {
   float rest[9];
   float adjust[9];
@@ -89,8 +132,10 @@ struct __align__(16) InlinePatch {
   int vertex[3];
   uint32_t flags;
   PatchBoundary bound;
+  float4 corner[3];
+  uint8_t box[kMaxInlineColumns];
 };
-static_assert(sizeof(InlinePatch) == 224 && sizeof(InlinePatch) % 16 == 0, "copied as 16-byte pieces");
+static_assert(sizeof(InlinePatch) == 336 && sizeof(InlinePatch) % 16 == 0, "copied as 16-byte pieces");
 constexpr int kPatchChunks = sizeof(InlinePatch) / 16;
 
 // Everything the inline kernel needs besides the plan view, built once per plan
@@ -100,17 +145,16 @@ constexpr int kPatchChunks = sizeof(InlinePatch) / 16;
 // ones). It is a launch parameter so the products read it from the constant bank.
 struct InlineArgs {
   const InlinePiece* pieces;
-  const float4* sample_pw;      // S: position, vertex weight
-  const uint2* sample_box;      // S: x the three pieces' indices into `pieces`, 10 bits each; y the box
-  const float4* column;         // K: barycentric point, centre-row coefficient (0 for constraint columns)
+  const InlineColumn* column;  // K
   const ColumnMap* column_map;
   const float* D;               // control values on the device, or null: from InlineControls
   int points, n_pieces, groups;
-  // The lattice boxes (one piece an axis) that hold samples, in power form, computed in shared
-  // memory by every block from the control values when they fit (boxes > 0), else the
-  // per-sample weights are used. box_list: each box's three pieces (indices into `pieces`).
+  // The lattice boxes (one piece an axis) that hold samples, box_count of them: box_list, each
+  // box's three pieces (indices into `pieces`) and, w, the three packed 10 bits each. In power
+  // form they are computed in shared memory by every block from the control values when they
+  // fit (boxes = box_count > 0), else the per-sample weights are used (boxes = 0).
   const int4* box_list;
-  int boxes;
+  int box_count, boxes;
   // The tessellation grid in the order tessellate_listed walks it (entry g is grid point
   // gi[g].order of the plan's tables): the boundary points' GridInfo (walk_boundary of them),
   // and every point's parameters (s, t) (grid_st), the interior from index st_interior (the
@@ -132,8 +176,8 @@ struct InlineArgs {
   // ColumnMap, in 16-byte units. With boxes the control values are staged in the block's ctrl
   // table (kBoxPoints at most) only while the boxes are computed.
   size_t shared_units(int K, int C) const {
-    return (boxes > 0 ? 0 : (size_t)points) + 6 * (size_t)n_pieces + (size_t)K + ((size_t)st_count + 1) / 2 +
-           (size_t)walk_boundary + (size_t)boxes * (C * C * C + 1);
+    return (boxes > 0 ? 0 : (size_t)points) + 6 * (size_t)n_pieces + 2 * (size_t)K + ((size_t)st_count + 1) / 2 +
+           (size_t)walk_boundary + (size_t)boxes * C * C * C + (size_t)box_count;
   }
   size_t shared_bytes(int K, int C) const {
     return 16 * shared_units(K, C) + 2 * (size_t)list_stride + sizeof(ColumnMap);
@@ -387,12 +431,11 @@ __device__ __forceinline__ void sample_box(const float4* __restrict__ boxes, con
 // a point, so that no thread idles beside the others on a point another patch owns; then
 // between() (the next group's first sample records); then the interior points, which every
 // patch writes, as tessellate_block has them.
-template <int kThreads, bool DIRECT, class Between>
+template <int kThreads, bool DIRECT>
 __device__ __forceinline__ void tessellate_listed(const PlanView& pv, const FrameView& fv, const GridInfo* __restrict__ gi,
                                                   const WalkST& st, const PatchCtrl* ctrl,
                                                   const PatchBoundary* sbound, const uint16_t* list, int base,
-                                                  long long render_shift, float* __restrict__ normals, float* staging,
-                                                  Between between) {
+                                                  long long render_shift, float* __restrict__ normals, float* staging) {
   const int L = pv.level;
   const int np = min(kThreads / 4, pv.patches - base);
   const int IG = (L - 1) * (L - 2) / 2;
@@ -415,7 +458,6 @@ __device__ __forceinline__ void tessellate_listed(const PlanView& pv, const Fram
     if (r >= 0) store3(normals + 3 * (long long)r, n);
     if (o >= 0) store3(fv.positions + 3 * (long long)o, x);
   }
-  between();
   if (IG == 0) return;
   const long long o0 = pv.sub_vertices + (long long)pv.edges * (L - 1) + (long long)base * IG;
   // The warps whose threads took one boundary point more take their interior runs last.
@@ -456,12 +498,12 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
   static_assert(sizeof(ctrl) >= 16 * kBoxPoints, "the control values fit in ctrl");
   float4* sD = BOXES ? reinterpret_cast<float4*>(&ctrl[0]) : lattice_shared;
   InlinePiece* sP = reinterpret_cast<InlinePiece*>(lattice_shared + (BOXES ? 0 : ia.points));
-  float4* sCol = reinterpret_cast<float4*>(sP + ia.n_pieces);
+  InlineColumn* sCol = reinterpret_cast<InlineColumn*>(sP + ia.n_pieces);
   float2* sST = reinterpret_cast<float2*>(sCol + K);  // ia.grid_st: (s, t) in walk order
-  GridInfo* sGi = reinterpret_cast<GridInfo*>(sCol + K + (ia.st_count + 1) / 2);  // the boundary points'
+  GridInfo* sGi = reinterpret_cast<GridInfo*>(reinterpret_cast<float4*>(sCol + K) + (ia.st_count + 1) / 2);
   float4* sBox = reinterpret_cast<float4*>(sGi + ia.walk_boundary);  // BOXES: boxes x C^3
-  int4* sBoxList = reinterpret_cast<int4*>(sBox + (BOXES ? ia.boxes * C * C * C : 0));  // BOXES: ia.box_list
-  uint16_t* sList = reinterpret_cast<uint16_t*>(sBoxList + (BOXES ? ia.boxes : 0));  // a group's boundary list
+  int4* sBoxList = reinterpret_cast<int4*>(sBox + (BOXES ? ia.boxes * C * C * C : 0));  // ia.box_list
+  uint16_t* sList = reinterpret_cast<uint16_t*>(sBoxList + ia.box_count);  // a group's boundary list
   ColumnMap* sMap = reinterpret_cast<ColumnMap*>(sList + ia.list_stride);
   // The group's patch records, copied asynchronously (no registers held, no wait until
   // __pipeline_wait_prior before the barrier that precedes their use).
@@ -475,35 +517,6 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     __pipeline_commit();
   };
   const int lp = threadIdx.x / LANES, lane = threadIdx.x % LANES;
-  // The sample records are two dependent gathers (column -> sample -> record). Within a
-  // group the sample index is fetched one iteration ahead of its record and the record two
-  // ahead of its evaluation; the first ones of a group are fetched during the previous
-  // group's tessellation (the indices before it, the records between its boundary and
-  // interior points), and those of the first group during the block's prologue, so that no
-  // group starts by waiting for them (that wait was a tenth of the stall samples).
-  float4 pw_a = make_float4(0, 0, 0, 0), pw_b = pw_a;
-  uint2 box_a = make_uint2(0, 0), box_b = box_a;
-  int s_a = 0, s_b = 0, s_c = 0;
-  // map: the ColumnMap, read only for columns past the grid's (in the prologue it is still in
-  // global memory, and the first columns of a patch are always grid columns).
-  auto fetch_indices = [&](int grp, const ColumnMap* map) {
-    const int pp = grp * PB + lp;
-    auto col = [&](int i) { return i < K0 ? i : K0 + map->extra[i - K0]; };
-    auto has = [&](int i) { return i < K0 || i < K0 + map->n_extra; };
-    if (grp < ia.groups && pp < pv.patches) {
-      const int* cols = pv.patch_samples + (long long)pp * K;
-      if (has(lane)) s_a = cols[col(lane)];
-      if (has(lane + LANES)) s_b = cols[col(lane + LANES)];
-      if (has(lane + 2 * LANES)) s_c = cols[col(lane + 2 * LANES)];
-    }
-  };
-  auto fetch_records = [&](int grp, int n) {
-    if (grp < ia.groups && grp * PB + lp < pv.patches) {
-      if (lane < n) pw_a = ia.sample_pw[s_a], box_a = ia.sample_box[s_a];
-      if (lane + LANES < n) pw_b = ia.sample_pw[s_b], box_b = ia.sample_box[s_b];
-    }
-  };
-  fetch_indices(blockIdx.x, ia.column_map);  // from global memory: the tables are not staged yet
   // The control values: from the launch's parameters indexed directly (constant-bank loads;
   // a pointer into the parameters made these generic loads, which waited on a slow path: 2%
   // of the stall samples), or from device memory.
@@ -523,10 +536,10 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
         __pipeline_memcpy_async(static_cast<int4*>(dst) + i, static_cast<const int4*>(src) + i, 16);
     };
     copy16(sP, ia.pieces, 6 * ia.n_pieces);
-    copy16(sCol, ia.column, K);
+    copy16(sCol, ia.column, 2 * K);
     copy16(sST, ia.grid_st, (ia.st_count + 1) / 2);
     copy16(sGi, ia.grid_walk, ia.walk_boundary);
-    if (BOXES) copy16(sBoxList, ia.box_list, ia.boxes);
+    copy16(sBoxList, ia.box_list, ia.box_count);
     for (int i = threadIdx.x; i < (int)(sizeof(ColumnMap) / 4); i += blockDim.x)
       __pipeline_memcpy_async(reinterpret_cast<int*>(sMap) + i, reinterpret_cast<const int*>(ia.column_map) + i, 4);
     __pipeline_commit();
@@ -536,7 +549,6 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
   __syncthreads();
   const int n_cols = K0 + sMap->n_extra;
   auto column = [&](int i) { return i < K0 ? i : K0 + sMap->extra[i - K0]; };
-  fetch_records(blockIdx.x, n_cols);
   if (BOXES) convert_boxes<C>(ia, sBoxList, sD, sP, sBox);
   __pipeline_wait_prior(0);  // the first group's patch records, which arrived meanwhile
   __syncthreads();           // and ctrl (the staged control values) is free again
@@ -560,20 +572,19 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
       __pipeline_commit();
     }
     if (live) {
-      const int* cols = pv.patch_samples + (long long)p * K;
+      const float4 P0 = rec.corner[0], P1 = rec.corner[1], P2 = rec.corner[2];
       for (int i = lane; i < n_cols; i += LANES) {
         const int k = column(i);
-        const float4 pw = pw_a;
-        const uint2 box = box_a;
-        pw_a = pw_b, box_a = box_b;
-        if (i + 2 * LANES < n_cols) pw_b = ia.sample_pw[s_c], box_b = ia.sample_box[s_c];
-        if (i + 3 * LANES < n_cols) s_c = cols[column(i + 3 * LANES)];
+        const InlineColumn& cl = sCol[k];
+        const float4 pw = inline_sample_point(cl, rec.flags, P0, P1, P2);
+        const int b = rec.box[i];
+        const uint2 box = make_uint2((uint32_t)sBoxList[b].w, (uint32_t)b);
         float F[3], J[9];
         if (BOXES)
           sample_box<C>(sBox, sP, pw, box, F, J);
         else
           sample_inline<C>(sD, sP, pw, box.x, F, J);
-        const float4 col = sCol[k];
+        const float4 col = cl.bary;
         const V3 x = v3(F[0], F[1], F[2]);
         // deformed_column_normal (stages.hpp) with the column's point from shared memory.
         const float* rn = rec.rest;
@@ -671,11 +682,9 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     __pipeline_wait_prior(0);  // the boundary list
     __syncthreads();
     // 4. Tessellation.
-    const int next = group + gridDim.x;
-    fetch_patch_records(next);
-    fetch_indices(next, sMap);
+    fetch_patch_records(group + gridDim.x);
     tessellate_listed<PB * LANES, DIRECT>(pv, fv, sGi, WalkST{sST, ia.st_interior}, ctrl, sbound, sList, base,
-                                  render_shift, normals, stage_mem, [&] { fetch_records(next, n_cols); });
+                                          render_shift, normals, stage_mem);
     __pipeline_wait_prior(0);
     __syncthreads();  // the next group's records are in; it overwrites the block's tables
   }

@@ -1081,7 +1081,8 @@ struct CudaEvaluator::Impl {
     const int K = p.columns, K0 = K - 9;
     ColumnMap cm{};
     std::fill(std::begin(cm.con_of), std::end(cm.con_of), int8_t(-1));
-    cm.n_extra = 0;
+    std::vector<int> evaluated;  // the grid's columns, then the constraint columns that are none
+    for (int k = 0; k < K0; ++k) evaluated.push_back(k);
     for (int j = 0; j < 9; ++j) {
       int dup = -1;
       for (int k = 0; k < K0 && dup < 0; ++k) {
@@ -1094,13 +1095,8 @@ struct CudaEvaluator::Impl {
       if (dup >= 0)
         cm.con_of[dup] = int8_t(j);
       else
-        cm.extra[cm.n_extra++] = int8_t(j);
+        evaluated.push_back(K0 + j);
     }
-    ia.column_map = arena.upload(std::vector<ColumnMap>{cm});
-    // The evaluated columns in the kernel's order: the grid's, then the extra constraint ones.
-    std::vector<int> evaluated;
-    for (int k = 0; k < K0; ++k) evaluated.push_back(k);
-    for (int j = 0; j < cm.n_extra; ++j) evaluated.push_back(K0 + cm.extra[j]);
     if ((int)evaluated.size() > kMaxInlineColumns) {
       inline_ok = false;
       return;
@@ -1127,6 +1123,12 @@ struct CudaEvaluator::Impl {
       }
     }
     ia.column = arena.upload(col);
+    // The kernel's order of the evaluated columns: corners, edge points, interior points.
+    auto kind = [&](int k) { return col[k].corner >= 0 ? 0 : col[k].edge >= 0 ? 1 : 2; };
+    std::stable_sort(evaluated.begin(), evaluated.end(), [&](int a, int b) { return kind(a) < kind(b); });
+    for (size_t i = 0; i < evaluated.size(); ++i) cm.order[i] = int8_t(evaluated[i]);
+    cm.n_cols = int8_t(evaluated.size());
+    ia.column_map = arena.upload(std::vector<ColumnMap>{cm});
     // M_r's last 9 columns, and the sum of its six edge rows in the order finish_patch_from
     // adds the fitted edge control points (edge k: the point next to corner k, then k + 1).
     for (int r = 0; r < 10; ++r)

@@ -37,22 +37,26 @@ struct InlinePiece {
   int4 off;
 };
 
+// Columns k_inline evaluates a patch (the grid's and the extra constraint columns): at most
+// 55 + 9 for C <= 4.
+constexpr int kMaxInlineGrid = 64;  // fitting-grid columns; C <= 4 gives degree <= 9: 55
+constexpr int kMaxInlineColumns = 64;
+
 // The constraint columns (corners, edge points at 1/3 and 2/3) are usually fitting-grid points
 // too (always the corners; the edge points when the fitting degree is a multiple of 3), with
 // the same sample: such a column is evaluated once. con_of[k]: constraint column (0-8) that
-// grid column k also is, or -1; extra[0 .. n_extra): constraint columns that are no grid point.
-constexpr int kMaxInlineGrid = 64;  // fitting-grid columns; C <= 4 gives degree <= 9: 55
+// grid column k also is, or -1. order[0 .. n_cols): the columns k_inline evaluates (the grid's
+// and the constraint columns that are no grid point), corners first, then edge points, then
+// interior points, so that a warp's lanes mostly place samples of one kind at a time
+// (inline_sample_point branches on it: in the grid's own order, every step of the column
+// loop ran all three branches).
 struct ColumnMap {
   int8_t con_of[kMaxInlineGrid];
-  int8_t extra[9];
-  int8_t n_extra;
-  int8_t pad[2];
+  int8_t order[kMaxInlineColumns];
+  int8_t n_cols;
+  int8_t pad[3];
 };
-static_assert(sizeof(ColumnMap) == 76, "ColumnMap is staged as 19 words");
-
-// Columns k_inline evaluates a patch (the grid's and the extra constraint columns): at most
-// 55 + 9 for C <= 4.
-constexpr int kMaxInlineColumns = 64;
+static_assert(sizeof(ColumnMap) == 132, "ColumnMap is staged as 33 words");
 
 // A fitting column as k_inline reads it (shared memory, 32 bytes): its barycentric point and
 // centre-row coefficient (0 for constraint columns), and where its sample lies: at corner
@@ -547,8 +551,8 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     __pipeline_wait_prior(1);         // the tables
   }
   __syncthreads();
-  const int n_cols = K0 + sMap->n_extra;
-  auto column = [&](int i) { return i < K0 ? i : K0 + sMap->extra[i - K0]; };
+  const int n_cols = sMap->n_cols;
+  auto column = [&](int i) { return (int)sMap->order[i]; };
   if (BOXES) convert_boxes<C>(ia, sBoxList, sD, sP, sBox);
   __pipeline_wait_prior(0);  // the first group's patch records, which arrived meanwhile
   __syncthreads();           // and ctrl (the staged control values) is free again

@@ -150,9 +150,9 @@ __device__ __forceinline__ int div_small(int j, int d, float inv) {
   return q;
 }
 
-// Shared floats tessellate_interior needs for its coalesced stores: a warp's 2 x 96, or 2 x 192
-// with two points a thread (k_inline's tessellate_listed).
-__host__ __device__ constexpr int tess_staging_floats(int threads, int pts = 1) { return threads / 32 * 2 * 96 * pts; }
+// Shared floats tessellate_interior needs for its coalesced stores (one point a thread): a
+// warp's 2 x 96.
+__host__ __device__ constexpr int tess_staging_floats(int threads) { return threads / 32 * 2 * 96; }
 
 // PTS consecutive points' coordinates (3 PTS floats) from dst on: two points as three 8-byte
 // stores (dst 8-byte aligned), one as three 4-byte stores.
@@ -389,9 +389,11 @@ struct WalkST {
 // advances by a constant step instead of a division a point. ST: PlanOrderST or WalkST.
 // LAST_FIRST: the block's last warp takes the first run (when the runs do not divide evenly,
 // the warps at the end take one more: k_inline's boundary list gives its extra points to the
-// first warps). DIRECT: each thread stores its points straight from registers (PTS = 2: three
-// 8-byte stores a field, 8-byte aligned when the interior's first output and render vertex
-// are, as the evaluator's buffers have them) instead of through the staging buffer.
+// first warps). DIRECT (k_inline): each thread stores its points straight from registers
+// (PTS = 2: three 8-byte stores a field, aligned since the evaluator's buffers put the
+// interior's first output and render vertex on 16 bytes) instead of through the staging
+// buffer: no shared-memory round trip and no warp barriers, about 1% faster on W1
+// (docs/benchmarks.md); staging: shared memory for the coalesced stores otherwise.
 template <int PTS, int kThreads, bool LAST_FIRST, bool DIRECT, class ST>
 __device__ __forceinline__ void tessellate_interior(const FrameView& fv, const ST& st, const PatchCtrl* ctrl,
                                                     int n_int, int IG, long long o0, long long render_shift,
@@ -403,8 +405,8 @@ __device__ __forceinline__ void tessellate_interior(const FrameView& fv, const S
   int q = div_small(warp * kRun + PTS * wl, IG, inv_ig), jj = warp * kRun + PTS * wl - q * IG;
   float* pos = fv.positions + 3 * (o0 + warp * kRun);  // the warp's run of vertices
   float* nrm = normals + 3 * (o0 + warp * kRun + render_shift);
-  float* bx = staging + warp * 2 * kFloats;
-  float* bn = bx + kFloats;
+  float* bx = DIRECT ? nullptr : staging + warp * 2 * kFloats;
+  float* bn = DIRECT ? nullptr : bx + kFloats;
   for (int j0 = warp * kRun; j0 < n_int; j0 += kStep, pos += 3 * kStep, nrm += 3 * kStep) {
     V3 x[PTS], n[PTS];
 #pragma unroll
@@ -1001,9 +1003,6 @@ struct CudaEvaluator::Impl {
   int grid_env = 0;  // SMOOTHFFD_INLINE_GRID: k_inline blocks (experiments; 0: as many as fit)
   InlineArgs inline_args{};
   int box_env = -1;  // SMOOTHFFD_INLINE_BOXES=0: the per-sample weights even where boxes fit
-  // SMOOTHFFD_INLINE_DIRECT=1: k_inline stores its interior points straight from registers
-  // (tessellate_interior's DIRECT) instead of through its staging buffer.
-  bool inline_direct = false;
   std::vector<int> inline_grid;  // resident blocks of each k_inline instantiation (persistent grid)
   int* loose = nullptr;            // sub-vertices in no patch
   int loose_count = 0;
@@ -1230,19 +1229,15 @@ struct CudaEvaluator::Impl {
   // patches until none is left.
   template <int C, int MINB>
   void launch_inline(int slot, size_t smem, const InlineControls& dp) {
-    const bool boxes = inline_args.boxes > 0;
-    slot = 4 * slot + 2 * boxes + inline_direct;
-    if (boxes)
-      inline_direct ? launch_inline_as<C, true, MINB, true>(slot, smem, dp)
-                    : launch_inline_as<C, true, MINB, false>(slot, smem, dp);
+    if (inline_args.boxes > 0)
+      launch_inline_as<C, true, MINB>(2 * slot, smem, dp);
     else
-      inline_direct ? launch_inline_as<C, false, MINB, true>(slot, smem, dp)
-                    : launch_inline_as<C, false, MINB, false>(slot, smem, dp);
+      launch_inline_as<C, false, MINB>(2 * slot + 1, smem, dp);
   }
 
-  template <int C, bool BOXES, int MINB, bool DIRECT>
+  template <int C, bool BOXES, int MINB>
   void launch_inline_as(int slot, size_t smem, const InlineControls& dp) {
-    auto kern = k_inline<C, BOXES, 32, 4, MINB, DIRECT>;
+    auto kern = k_inline<C, BOXES, 32, 4, MINB>;
     if (inline_grid.size() <= (size_t)slot) inline_grid.resize(slot + 1, 0);
     if (inline_grid[slot] == 0) {
       int per_sm = 0, sms = 0, dev = 0;
@@ -1424,7 +1419,6 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
     m.sample_blocks = std::string(b) == "fixed" ? -1 : std::atoi(b);
   if (const char* b = std::getenv("SMOOTHFFD_FUSED_BLOCKS")) m.fused_blocks = std::atoi(b);
   if (const char* b = std::getenv("SMOOTHFFD_INLINE_BOXES")) m.box_env = std::atoi(b);
-  if (const char* b = std::getenv("SMOOTHFFD_INLINE_DIRECT")) m.inline_direct = std::atoi(b) != 0;
   if (const char* g = std::getenv("SMOOTHFFD_INLINE_GRID")) m.grid_env = std::atoi(g);
   if (const char* ff = std::getenv("SMOOTHFFD_FUSED_FIT"))
     m.fused_fit = std::string(ff) == "regs" ? 1 : std::string(ff) == "staged" ? 0 : -1;

@@ -435,11 +435,11 @@ __device__ __forceinline__ void sample_box(const float4* __restrict__ boxes, con
 // a point, so that no thread idles beside the others on a point another patch owns; then
 // between() (the next group's first sample records); then the interior points, which every
 // patch writes, as tessellate_block has them.
-template <int kThreads, bool DIRECT>
+template <int kThreads>
 __device__ __forceinline__ void tessellate_listed(const PlanView& pv, const FrameView& fv, const GridInfo* __restrict__ gi,
                                                   const WalkST& st, const PatchCtrl* ctrl,
                                                   const PatchBoundary* sbound, const uint16_t* list, int base,
-                                                  long long render_shift, float* __restrict__ normals, float* staging) {
+                                                  long long render_shift, float* __restrict__ normals) {
   const int L = pv.level;
   const int np = min(kThreads / 4, pv.patches - base);
   const int IG = (L - 1) * (L - 2) / 2;
@@ -466,9 +466,9 @@ __device__ __forceinline__ void tessellate_listed(const PlanView& pv, const Fram
   const long long o0 = pv.sub_vertices + (long long)pv.edges * (L - 1) + (long long)base * IG;
   // The warps whose threads took one boundary point more take their interior runs last.
   if (IG % 2 == 0)
-    tessellate_interior<2, kThreads, true, DIRECT>(fv, st, ctrl, np * IG, IG, o0, render_shift, normals, staging);
+    tessellate_interior<2, kThreads, true, true>(fv, st, ctrl, np * IG, IG, o0, render_shift, normals, nullptr);
   else
-    tessellate_interior<1, kThreads, true, DIRECT>(fv, st, ctrl, np * IG, IG, o0, render_shift, normals, staging);
+    tessellate_interior<1, kThreads, true, true>(fv, st, ctrl, np * IG, IG, o0, render_shift, normals, nullptr);
 }
 
 // One kernel a frame, persistent: each block stages the lattice tables once, then takes
@@ -481,19 +481,14 @@ __device__ __forceinline__ void tessellate_listed(const PlanView& pv, const Fram
 //    per-patch tables out of the patch records;
 // 4. lane 0: finish_patch_from; then the block tessellates its patches, and meanwhile the
 //    next group's patch records (InlinePatch) arrive in shared memory (cp.async).
-template <int C, bool BOXES, int PB, int LANES, int MINB, bool DIRECT>
+template <int C, bool BOXES, int PB, int LANES, int MINB>
 __global__ void __launch_bounds__(PB* LANES, MINB)
     k_inline(PlanView pv, FrameView fv, InlineArgs ia, InlineControls dparam, long long render_shift,
              float* __restrict__ normals) {
   static_assert(LANES == 4, "lanes 0-2 take a component / an edge each, lane 3 the tables");
   extern __shared__ float4 lattice_shared[];
   __shared__ PatchCtrl ctrl[PB];
-  // Constraint column j of patch q: stage[q][j], x (0-2), n (3-5); during the tessellation the
-  // staging of its coalesced stores.
-  constexpr int kStageFloats = PB * 9 * 6 > tess_staging_floats(PB * LANES, 2) ? PB * 9 * 6
-                                                                                : tess_staging_floats(PB * LANES, 2);
-  __shared__ __align__(16) float stage_mem[kStageFloats];
-  float(*stage)[9][6] = reinterpret_cast<float(*)[9][6]>(stage_mem);
+  __shared__ float stage[PB][9][6];       // constraint column j: x (0-2), n (3-5)
   __shared__ float corner_jac[PB][3][9];  // Jacobians at the corners (constraint columns 0-2)
   __shared__ float geo[PB][2][3];         // fitted centre, sum of the fitted edge control points
   __shared__ InlinePatch srec[PB];        // the group's patch records
@@ -687,8 +682,8 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     __syncthreads();
     // 4. Tessellation.
     fetch_patch_records(group + gridDim.x);
-    tessellate_listed<PB * LANES, DIRECT>(pv, fv, sGi, WalkST{sST, ia.st_interior}, ctrl, sbound, sList, base,
-                                          render_shift, normals, stage_mem);
+    tessellate_listed<PB * LANES>(pv, fv, sGi, WalkST{sST, ia.st_interior}, ctrl, sbound, sList, base, render_shift,
+                                  normals);
     __pipeline_wait_prior(0);
     __syncthreads();  // the next group's records are in; it overwrites the block's tables
   }

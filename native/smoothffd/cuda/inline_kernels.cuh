@@ -9,9 +9,11 @@
 // patch evaluates its 37 columns itself (28 evaluations once the constraint columns that are
 // grid points are shared; a sample on an edge is evaluated by both patches, about 1.6
 // evaluations a sample), from tables in shared memory, and adjusts its own three edges from
-// its own constraint columns. The two patches of an edge evaluate the same samples with the
-// same instructions, so they compute bitwise the same edge control points and the surface
-// stays watertight, as with one thread an edge.
+// its own constraint columns. It places each sample itself, from the three corner samples in
+// its patch record (inline_sample_point), so no per-sample record is gathered. The two
+// patches of an edge place and evaluate the same samples with the same instructions, so they
+// compute bitwise the same edge control points and the surface stays watertight, as with one
+// thread an edge. The tessellation evaluates the patches in power form (eval_point).
 //
 // A sample is evaluated either from the lattice boxes in power form (convert_boxes, once a
 // block; eval_box: three nested Horner schemes) or, where those do not fit in shared memory,
@@ -189,9 +191,10 @@ struct InlineArgs {
 };
 
 // Largest dynamic shared-memory table an inline launch may ask for (the kernels opt in to it;
-// with the ~31 KB of static shared memory, 4 blocks fit an SM up to about 25 KB of it, 3
-// beyond: W1 asks for 16 KB). Larger lattices (beyond
-// about 1500 control points of degree 2) or levels (beyond about 40) run the staged path.
+// with the ~34 KB of static shared memory, 4 blocks fit an SM up to about 22 KB of it, 3
+// beyond: W1 asks for 17 KB at L = 10, more than 22 KB beyond L = 23). Larger lattices (beyond
+// about 1500 control points of degree 2) or levels (beyond 36 with W1's 27 boxes) run the
+// staged path.
 constexpr size_t kInlineSharedBytes = 28 * 1024;
 constexpr int kBoxPoints = 512;  // control values that fit k_inline's ctrl table (32 patches)
 

@@ -66,7 +66,7 @@ STAGED = ("SMOOTHFFD_FUSED_FIT", "staged")
 # adjusted by each patch); "staged" is the previous default (sampling kernel + edge kernel +
 # fit from the sample buffers).
 VARIANTS = [(("SMOOTHFFD_FUSED_BLOCKS", "5"),), (("SMOOTHFFD_FUSED_BLOCKS", "6"),), (("SMOOTHFFD_INLINE_BOXES", "0"),),
-            (("SMOOTHFFD_INLINE_BOXES", "0"), ("SMOOTHFFD_FUSED_BLOCKS", "4")),
+            (("SMOOTHFFD_INLINE_BOXES", "0"), ("SMOOTHFFD_FUSED_BLOCKS", "5")),
             (STAGED,),
             (STAGED, ("SMOOTHFFD_FUSED_BLOCKS", "4")), (REGS,)]
 

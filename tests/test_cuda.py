@@ -162,7 +162,7 @@ STAGED = ("SMOOTHFFD_FUSED_FIT", "staged")
 _S, _L, _B = "SMOOTHFFD_SAMPLE_BLOCKS", "SMOOTHFFD_FUSED_LANES", "SMOOTHFFD_FUSED_BLOCKS"
 # Inline (default) kernel with other register caps and with the per-sample weights instead
 # of the box polynomials, then every switch of the staged kernels.
-VARIANTS = [((_B, "5"),), ((_B, "6"),), (("SMOOTHFFD_INLINE_BOXES", "0"),), (("SMOOTHFFD_INLINE_BOXES", "0"), (_B, "4")),
+VARIANTS = [((_B, "5"),), ((_B, "6"),), (("SMOOTHFFD_INLINE_BOXES", "0"),), (("SMOOTHFFD_INLINE_BOXES", "0"), (_B, "5")),
             (STAGED,)] + [(STAGED,) + v for v in [
     ((_S, "1"),), ((_S, "2"),), ((_S, "3"),), ((_S, "4"),), ((_S, "fixed"),), ((_L, "4"),), ((_L, "16"),),
     ((_B, "4"),), ((_L, "4"), (_B, "1")), ((_L, "4"), (_B, "5"))]] + [

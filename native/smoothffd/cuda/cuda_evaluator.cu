@@ -155,7 +155,8 @@ __device__ __forceinline__ int div_small(int j, int d, float inv) {
 __host__ __device__ constexpr int tess_staging_floats(int threads) { return threads / 32 * 2 * 96; }
 
 // PTS consecutive points' coordinates (3 PTS floats) from dst on: two points as three 8-byte
-// stores (dst 8-byte aligned), one as three 4-byte stores.
+// stores (dst 8-byte aligned), one as three 4-byte stores. (Four points a thread, as three
+// 16-byte stores, measured 6% slower on W1: docs/benchmarks.md.)
 template <int PTS>
 __device__ __forceinline__ void store_points(float* dst, const V3 v[PTS]) {
   if constexpr (PTS == 2) {
@@ -232,29 +233,28 @@ __device__ __forceinline__ void to_power_form(float* f) {
   store_field(f, a);
 }
 
-// Position x and unit normal n of a patch at grid point (s, t) (grid_st): cg and cn its
-// geometry and normal patches in power form (to_power_form), fallback its unit_patch_normal
-// fallback. The same surface as eval_cubic and unit_patch_normal (stages.hpp), which the CPU
-// evaluates in Bernstein form, up to rounding.
-__device__ __forceinline__ void eval_point(float s, float t, const float* cg, const float* cn, V3 fallback, V3& x,
-                                           V3& n) {
+// Positions x and unit normals n of a patch at N grid points (s[i], t[i]) (grid_st): cg and
+// cn its geometry and normal patches in power form (to_power_form), fallback its
+// unit_patch_normal fallback; one read of the power forms for all N. The same surface as
+// eval_cubic and unit_patch_normal (stages.hpp), which the CPU evaluates in Bernstein form, up
+// to rounding.
+template <int N>
+__device__ __forceinline__ void eval_points(const float s[N], const float t[N], const float* cg, const float* cn,
+                                            V3 fallback, V3 x[N], V3 n[N]) {
   V3 g[10], c[10];
   load_field(cg, g);
   load_field(cn, c);
-  x = cubic_power_eval(g, s, t);
-  n = normalized_or(cubic_power_eval(c, s, t), fallback);
+#pragma unroll
+  for (int i = 0; i < N; ++i) {
+    x[i] = cubic_power_eval(g, s[i], t[i]);
+    n[i] = normalized_or(cubic_power_eval(c, s[i], t[i]), fallback);
+  }
 }
 
-// eval_point at two grid points of the same patch: one read of the power forms for both.
-__device__ __forceinline__ void eval_point2(float sa, float ta, float sb, float tb, const float* cg, const float* cn,
-                                            V3 fallback, V3& xa, V3& na, V3& xb, V3& nb) {
-  V3 g[10], c[10];
-  load_field(cg, g);
-  load_field(cn, c);
-  xa = cubic_power_eval(g, sa, ta);
-  xb = cubic_power_eval(g, sb, tb);
-  na = normalized_or(cubic_power_eval(c, sa, ta), fallback);
-  nb = normalized_or(cubic_power_eval(c, sb, tb), fallback);
+// eval_points at one point.
+__device__ __forceinline__ void eval_point(float s, float t, const float* cg, const float* cn, V3 fallback, V3& x,
+                                           V3& n) {
+  eval_points<1>(&s, &t, cg, cn, fallback, &x, &n);
 }
 
 // Output vertex of (patch p, grid point g) when p writes it, else -1 (corners are written by
@@ -415,10 +415,7 @@ __device__ __forceinline__ void tessellate_interior(const FrameView& fv, const S
     if (mine) {
       float s[PTS], t[PTS];
       st.template operator()<PTS>(jj, s, t);
-      if constexpr (PTS == 2)
-        eval_point2(s[0], t[0], s[1], t[1], ctrl[q][0], ctrl[q][1], load3(ctrl[q].fallback), x[0], n[0], x[1], n[1]);
-      else
-        eval_point(s[0], t[0], ctrl[q][0], ctrl[q][1], load3(ctrl[q].fallback), x[0], n[0]);
+      eval_points<PTS>(s, t, ctrl[q][0], ctrl[q][1], load3(ctrl[q].fallback), x, n);
     }
     q += step_q, jj += step_j;
     if (jj >= IG) jj -= IG, ++q;
@@ -1271,10 +1268,11 @@ struct CudaEvaluator::Impl {
     mark("sample_fit_tessellate");
     if (pv.patches > 0) {
       // 4 lanes a patch, 32 patches a block of 128. For C = 3 the register cap comes from
-      // MINB blocks an SM: 4 with box polynomials (128 registers, no spills), 5 with the
-      // per-sample weights (96); measured fastest (docs/benchmarks.md); SMOOTHFFD_FUSED_BLOCKS
-      // = 4, 5 or 6 for comparison. C = 2 and 4 run MINB 2.
-      const int minb = fused_blocks > 0 ? fused_blocks : inline_args.boxes > 0 ? 4 : 5;
+      // MINB blocks an SM: 4 (128 registers, no spills), with box polynomials and with the
+      // per-sample weights (with 5, 96 registers, the weights spill: 6% slower); measured
+      // fastest (docs/benchmarks.md); SMOOTHFFD_FUSED_BLOCKS = 4, 5 or 6 for comparison. C = 2
+      // and 4 run MINB 2.
+      const int minb = fused_blocks > 0 ? fused_blocks : 4;
       if constexpr (C != 3)
         launch_inline<C, 2>(0, smem, dp);
       else if (minb == 4)

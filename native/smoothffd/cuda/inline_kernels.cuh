@@ -432,12 +432,12 @@ __device__ __forceinline__ void sample_box(const float4* __restrict__ boxes, con
 }
 
 // tessellate_block's work for k_inline's group of patches (ctrl, already with their fallback
-// normals and in power form), in the walk order of the grid (gi, bary: GridInfo and barycentric points in walk
-// order, shared memory): first the boundary points the group writes, from its list (list:
-// InlineArgs::boundary_list's entries, sbound: the patches' PatchBoundary tables), one thread
-// a point, so that no thread idles beside the others on a point another patch owns; then
-// between() (the next group's first sample records); then the interior points, which every
-// patch writes, as tessellate_block has them.
+// normals and in power form), in the walk order of the grid (gi: the boundary points'
+// GridInfo, st: every point's (s, t); shared memory): first the boundary points the group
+// writes, from its list (list: InlineArgs::boundary_list's entries, sbound: the patches'
+// PatchBoundary tables), one thread a point, so that no thread idles beside the others on a
+// point another patch owns; then the interior points, which every patch writes, two a thread
+// where no pair straddles two patches, stored straight from registers.
 template <int kThreads>
 __device__ __forceinline__ void tessellate_listed(const PlanView& pv, const FrameView& fv, const GridInfo* __restrict__ gi,
                                                   const WalkST& st, const PatchCtrl* ctrl,

@@ -222,12 +222,18 @@ PYBIND11_MODULE(_core, m) {
       py::arg("corner_normals"), py::arg("uvs"), py::arg("vertex_weights"), py::arg("lattice"),
       py::arg("level"), py::arg("sharp_angle_degrees") = 1.0);
 
+  m.def("cpu_isa", &cpu_isa,
+        "the CPU evaluator's default per-frame code path on this CPU: 'x86-64-v3' (AVX2 + FMA, "
+        "chosen by CPUID) or the baseline 'x86-64-v2'; CpuEvaluator(..., isa=...) picks one");
   py::class_<CpuEvaluator, std::shared_ptr<CpuEvaluator>>(m, "CpuEvaluator")
-      .def(py::init([](std::shared_ptr<Plan> plan, int threads) {
-             return std::make_shared<CpuEvaluator>(plan, threads);
+      .def(py::init([](std::shared_ptr<Plan> plan, int threads, const std::string& isa) {
+             return std::make_shared<CpuEvaluator>(plan, threads, isa);
            }),
-           py::arg("plan"), py::arg("threads") = 0, py::keep_alive<1, 2>())
+           py::arg("plan"), py::arg("threads") = 0, py::kw_only(), py::arg("isa") = "auto",
+           py::keep_alive<1, 2>())
       .def_property_readonly("threads", &CpuEvaluator::threads)
+      .def_property_readonly("isa", &CpuEvaluator::isa,
+                             "per-frame code path: 'x86-64-v2' (baseline) or 'x86-64-v3' (AVX2 + FMA)")
       .def("evaluate",
            [](CpuEvaluator& ev, Arr<float> D, py::object positions, py::object corner_normals) {
              return run_evaluator(ev, D, positions, corner_normals);

@@ -8,6 +8,8 @@
 
 #include <cmath>
 
+#include "smoothffd/core/isa.hpp"
+
 #if defined(__CUDACC__)
 #define SFFD_HD __host__ __device__ __forceinline__
 #define SFFD_UNROLL _Pragma("unroll")
@@ -21,6 +23,8 @@ namespace sffd {
 struct V3 {
   float x, y, z;
 };
+
+SFFD_ISA_BEGIN
 
 SFFD_HD V3 v3(float x, float y, float z) { return V3{x, y, z}; }
 SFFD_HD V3 load3(const float* p) { return V3{p[0], p[1], p[2]}; }
@@ -59,5 +63,7 @@ SFFD_HD V3 cofactor_apply(const float* J, V3 n) {
   V3 c1{J[0], J[3], J[6]}, c2{J[1], J[4], J[7]}, c3{J[2], J[5], J[8]};
   return n.x * cross(c2, c3) + n.y * cross(c3, c1) + n.z * cross(c1, c2);
 }
+
+SFFD_ISA_END
 
 }  // namespace sffd

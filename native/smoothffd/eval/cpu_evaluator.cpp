@@ -1,17 +1,67 @@
 #include "smoothffd/eval/cpu_evaluator.hpp"
 
 #include <chrono>
+#include <climits>
+#include <stdexcept>
 
 #include "smoothffd/core/parallel.hpp"
-#include "smoothffd/eval/cpu_fitting.hpp"
-#include "smoothffd/eval/cpu_sampling.hpp"
-#include "smoothffd/eval/cpu_tessellation.hpp"
-#include "smoothffd/eval/stages.hpp"
 
 namespace sffd {
 
-CpuEvaluator::CpuEvaluator(std::shared_ptr<const Plan> plan, int threads)
+namespace {
+
+// Whether the CPU (and the OS: YMM state saved) runs x86-64-v3 code: AVX2 and FMA, and the
+// BMI1/BMI2 that -march=x86-64-v3 also lets the compiler use. libgcc's (or compiler-rt's)
+// CPUID table, filled once at load time.
+bool cpu_runs_v3() {
+#if defined(SFFD_HAVE_ISA_V3) && (defined(__GNUC__) || defined(__clang__)) && \
+    (defined(__x86_64__) || defined(__i386__))
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
+         __builtin_cpu_supports("bmi") && __builtin_cpu_supports("bmi2");
+#else
+  return false;
+#endif
+}
+
+const CpuFrameKernels* best_kernels() {
+#if defined(SFFD_HAVE_ISA_V3)
+  static const bool v3 = cpu_runs_v3();
+  if (v3) return &cpu_frame_kernels_v3;
+#endif
+  return &cpu_frame_kernels_baseline;
+}
+
+const CpuFrameKernels* kernels_for(const std::string& isa) {
+  if (isa == "auto" || isa.empty()) return best_kernels();
+  if (isa == cpu_frame_kernels_baseline.isa) return &cpu_frame_kernels_baseline;
+#if defined(SFFD_HAVE_ISA_V3)
+  if (isa == cpu_frame_kernels_v3.isa) {
+    if (!cpu_runs_v3()) throw std::invalid_argument("CpuEvaluator: this CPU cannot run " + isa + " code (no AVX2/FMA)");
+    return &cpu_frame_kernels_v3;
+  }
+#endif
+  std::string have;
+  for (const std::string& name : cpu_isas()) have += (have.empty() ? "" : ", ") + name;
+  throw std::invalid_argument("CpuEvaluator: unknown or unavailable isa '" + isa +
+                              "' (this build and CPU run: auto, " + have + ")");
+}
+
+}  // namespace
+
+std::string cpu_isa() { return best_kernels()->isa; }
+
+std::vector<std::string> cpu_isas() {
+  std::vector<std::string> out{cpu_frame_kernels_baseline.isa};
+#if defined(SFFD_HAVE_ISA_V3)
+  if (best_kernels() == &cpu_frame_kernels_v3) out.push_back(cpu_frame_kernels_v3.isa);
+#endif
+  return out;
+}
+
+CpuEvaluator::CpuEvaluator(std::shared_ptr<const Plan> plan, int threads, const std::string& isa)
     : plan_(std::move(plan)), threads_(threads > 0 ? threads : default_threads()),
+      kernels_(kernels_for(isa)),
       batches_(make_sample_batches(*plan_)),
       fit_columns_(make_fit_columns(*plan_)),
       grid_lanes_(make_grid_basis_lanes(*plan_)) {
@@ -22,6 +72,8 @@ CpuEvaluator::CpuEvaluator(std::shared_ptr<const Plan> plan, int threads)
   patch_control_.resize(30 * (size_t)p.patches);
   patch_normal_.resize(30 * (size_t)p.patches);
 }
+
+std::string CpuEvaluator::isa() const { return kernels_->isa; }
 
 StageTimes CpuEvaluator::evaluate(const float* D, float* positions, float* corner_normals) {
   using Clock = std::chrono::steady_clock;
@@ -35,37 +87,24 @@ StageTimes CpuEvaluator::evaluate(const float* D, float* positions, float* corne
     times.emplace_back(name, std::chrono::duration<double, std::milli>(t1 - t0).count());
     t0 = t1;
   };
+  const CpuFrameKernels& k = *kernels_;
   parallel_for(batches_.count(), threads_, [&](long long b, long long e) {
-    for (long long i = b; i < e; ++i) sample_batch(pv, D, batches_, i, fv.sample_value, fv.sample_jacobian);
+    k.sample(pv, D, batches_, b, e, fv.sample_value, fv.sample_jacobian, INT_MAX);
   });
   lap("sampling");
-  parallel_for(pv.edges, threads_, [&](long long b, long long e) {
-    for (long long i = b; i < e; ++i) adjust_edge(pv, fv, (int)i);
-  });
+  parallel_for(pv.edges, threads_, [&](long long b, long long e) { k.adjust_edges(pv, fv, b, e); });
   lap("edge_adjustment");
   parallel_for(pv.patches, threads_, [&](long long b, long long e) {
-    for (long long p = b; p < e; ++p)
-      fit_patch_lanes(pv, fv, fit_columns_, (int)p, fv.patch_control + 30 * p, fv.patch_normal + 30 * p);
+    k.fit_patches(pv, fv, fit_columns_, b, e);
   });
   lap("fitting");
   parallel_for(pv.output_vertices, threads_, [&](long long b, long long e) {
-    for (long long o = b; o < e; ++o) tessellate_position(pv, fv, (int)o);
+    k.tessellate_positions(pv, fv, b, e);
   });
   lap("tessellate_positions");
-  const int LL = pv.level * pv.level;
   parallel_for(pv.patches, threads_, [&](long long b, long long e) {
-    const int P = grid_lanes_.padded;
-    std::vector<float> normals(3 * (size_t)P);
-    for (long long p = b; p < e; ++p) {
-      patch_grid_normals(pv, fv, grid_lanes_, (int)p, normals.data());
-      float* out = corner_normals + 9 * p * LL;
-      for (int i = 0; i < 3 * LL; ++i) {
-        const int g = pv.local_triangles[i];
-        out[3 * i] = normals[g];
-        out[3 * i + 1] = normals[P + g];
-        out[3 * i + 2] = normals[2 * P + g];
-      }
-    }
+    std::vector<float> normals(3 * (size_t)grid_lanes_.padded);
+    k.tessellate_normals(pv, fv, grid_lanes_, b, e, normals.data());
   });
   lap("tessellate_normals");
   return times;
@@ -92,26 +131,19 @@ StageTimes CpuEvaluator::evaluate_positions(const float* D, float* positions) {
   // samples, numbered [0, sub_vertices) (plan.cpp). A batch holding one of them runs with
   // Jacobians, every other batch values only. Batches keep plan order within a lattice box,
   // so the sub-vertices fill batches of their own, and at most one batch a box is mixed.
-  const int corners = pv.sub_vertices;
+  const CpuFrameKernels& k = *kernels_;
   parallel_for(batches_.count(), threads_, [&](long long b, long long e) {
-    for (long long i = b; i < e; ++i) {
-      bool jacobian = false;
-      for (int k = batches_.start[i]; k < batches_.start[i + 1]; ++k) jacobian |= batches_.order[k] < corners;
-      sample_batch(pv, D, batches_, i, fv.sample_value, jacobian ? fv.sample_jacobian : nullptr);
-    }
+    k.sample(pv, D, batches_, b, e, fv.sample_value, fv.sample_jacobian, pv.sub_vertices);
   });
   lap("sampling");
-  parallel_for(pv.edges, threads_, [&](long long b, long long e) {
-    for (long long i = b; i < e; ++i) adjust_edge(pv, fv, (int)i);
-  });
+  parallel_for(pv.edges, threads_, [&](long long b, long long e) { k.adjust_edges(pv, fv, b, e); });
   lap("edge_adjustment");
   parallel_for(pv.patches, threads_, [&](long long b, long long e) {
-    for (long long p = b; p < e; ++p)
-      fit_patch_lanes(pv, fv, fit_columns_, (int)p, fv.patch_control + 30 * p, nullptr);
+    k.fit_patches(pv, fv, fit_columns_, b, e);  // fv.patch_normal is null: geometry only
   });
   lap("fitting");
   parallel_for(pv.output_vertices, threads_, [&](long long b, long long e) {
-    for (long long o = b; o < e; ++o) tessellate_position(pv, fv, (int)o);
+    k.tessellate_positions(pv, fv, b, e);
   });
   lap("tessellate_positions");
   return times;

@@ -1,17 +1,32 @@
 // Multithreaded CPU evaluator: runs the stages of eval/stages.hpp over all elements.
 #pragma once
 
+#include <string>
+#include <vector>
+
 #include "smoothffd/eval/evaluator.hpp"
 #include "smoothffd/eval/cpu_fitting.hpp"
+#include "smoothffd/eval/cpu_frame.hpp"
 #include "smoothffd/eval/cpu_sampling.hpp"
 #include "smoothffd/eval/cpu_tessellation.hpp"
 
 namespace sffd {
 
+// The per-frame code path CpuEvaluator takes by default on this CPU: "x86-64-v3" when this
+// build has the AVX2 + FMA copy (SMOOTHFFD_DISPATCH) and CPUID says the CPU runs it, else the
+// baseline's name (SFFD_ISA_NAME: "x86-64-v2" for shipped builds). Decided once per process.
+std::string cpu_isa();
+// Every path this build has and this CPU can run, baseline first.
+std::vector<std::string> cpu_isas();
+
 class CpuEvaluator : public Evaluator {
  public:
-  CpuEvaluator(std::shared_ptr<const Plan> plan, int threads = 0);
+  // isa: "auto" (cpu_isa()), or the name of one of the per-frame code paths (core/isa.hpp):
+  // "x86-64-v2" (the baseline of shipped builds), "x86-64-v3" (AVX2 + FMA). Throws
+  // std::invalid_argument for a path this build lacks or this CPU cannot run.
+  CpuEvaluator(std::shared_ptr<const Plan> plan, int threads = 0, const std::string& isa = "auto");
   std::string name() const override { return "cpu"; }
+  std::string isa() const;  // the path this evaluator runs
   const Plan& plan() const override { return *plan_; }
   StageTimes evaluate(const float* D, float* positions, float* corner_normals) override;
   // Positions only (N x 3), bitwise the same as evaluate's, for callers that compute normals
@@ -24,6 +39,7 @@ class CpuEvaluator : public Evaluator {
  private:
   std::shared_ptr<const Plan> plan_;
   int threads_;
+  const CpuFrameKernels* kernels_;  // the per-ISA per-frame loops
   SampleBatches batches_;  // sampling: samples grouped by lattice box, kLanes at a time
   FitColumns fit_columns_; // fitting: the centre row's columns, kLanes at a time
   GridBasisLanes grid_lanes_;  // normal tessellation: grid points kLanes at a time

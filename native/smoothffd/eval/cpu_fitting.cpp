@@ -5,6 +5,7 @@
 
 namespace sffd {
 
+#if SFFD_ISA_PRIMARY  // plan-time part: the baseline copy only
 FitColumns make_fit_columns(const Plan& plan) {
   FitColumns fc;
   const int K = plan.columns;
@@ -19,6 +20,9 @@ FitColumns make_fit_columns(const Plan& plan) {
   }
   return fc;
 }
+#endif  // SFFD_ISA_PRIMARY
+
+SFFD_ISA_BEGIN  // per-frame part: one copy per ISA (core/isa.hpp)
 
 namespace {
 
@@ -115,5 +119,7 @@ void fit_patch_lanes(const PlanView& pv, const FrameView& fv, const FitColumns& 
   else
     fit_patch_impl<false>(pv, fv, fc, p, out_g, nullptr);
 }
+
+SFFD_ISA_END
 
 }  // namespace sffd

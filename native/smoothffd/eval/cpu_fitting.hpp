@@ -10,6 +10,7 @@
 
 #include <vector>
 
+#include "smoothffd/core/isa.hpp"
 #include "smoothffd/eval/plan_view.hpp"
 
 namespace sffd {
@@ -24,10 +25,14 @@ struct FitColumns {
 
 FitColumns make_fit_columns(const Plan& plan);
 
+SFFD_ISA_BEGIN  // one copy per ISA (core/isa.hpp)
+
 // The geometry patch (10 x 3 floats) of patch p into out_g and, when out_n is not null, its
 // normal patch into out_n; reads fv.sample_value, fv.sample_jacobian (only for normals: the
 // adjusted edges already used the corner Jacobians) and fv.edge_control.
 void fit_patch_lanes(const PlanView& pv, const FrameView& fv, const FitColumns& fc, int p,
                      float* out_g, float* out_n);
+
+SFFD_ISA_END
 
 }  // namespace sffd

@@ -8,6 +8,8 @@
 
 namespace sffd {
 
+#if SFFD_ISA_PRIMARY  // plan-time part: the baseline copy only
+
 namespace {
 
 // Terms an axis the contraction of a box runs with: sample_point's dispatch on the largest
@@ -21,6 +23,49 @@ int box_terms(const Plan& plan, uint32_t packed) {
   }
   return need <= 4 ? need : kMaxTerms;
 }
+
+}  // namespace
+
+SampleBatches make_sample_batches(const Plan& plan) {
+  const int S = plan.samples;
+  SampleBatches sb;
+  sb.order.resize(S);
+  // Dense box id from the three piece numbers; a counting sort keeps plan order in a box.
+  int n[3];
+  for (int a = 0; a < 3; ++a)
+    n[a] = (a < 2 ? plan.axis_offset[a + 1] : (int)plan.pieces.size()) - plan.axis_offset[a];
+  auto box = [&](uint32_t k) {
+    return ((long long)((k >> 20) & 1023u) * n[1] + ((k >> 10) & 1023u)) * n[0] + (k & 1023u);
+  };
+  const long long boxes = (long long)n[0] * n[1] * n[2];
+  if (boxes <= 4LL * S + 1024) {
+    std::vector<int> first(boxes + 1, 0);
+    for (int s = 0; s < S; ++s) ++first[box(plan.sample_piece[s]) + 1];
+    std::partial_sum(first.begin(), first.end(), first.begin());
+    for (int s = 0; s < S; ++s) sb.order[first[box(plan.sample_piece[s])]++] = s;
+  } else {  // very fine lattices: more boxes than samples
+    std::iota(sb.order.begin(), sb.order.end(), 0);
+    std::stable_sort(sb.order.begin(), sb.order.end(), [&](int x, int y) {
+      return box(plan.sample_piece[x]) < box(plan.sample_piece[y]);
+    });
+  }
+  for (int i = 0; i < S;) {
+    const uint32_t key = plan.sample_piece[sb.order[i]];
+    int j = i;
+    while (j < S && j - i < kLanes && plan.sample_piece[sb.order[j]] == key) ++j;
+    sb.start.push_back(i);
+    sb.terms.push_back((uint8_t)box_terms(plan, key));
+    i = j;
+  }
+  sb.start.push_back(S);
+  return sb;
+}
+
+#endif  // SFFD_ISA_PRIMARY
+
+SFFD_ISA_BEGIN  // per-frame part: one copy per ISA (core/isa.hpp)
+
+namespace {
 
 // kJacobian = false leaves J unused, and the compiler drops its sums (all locals, unrolled).
 template <int C, bool kJacobian>
@@ -62,41 +107,6 @@ void sample_box(int terms, const PlanView& pv, const float* D, const int* ids, i
 
 }  // namespace
 
-SampleBatches make_sample_batches(const Plan& plan) {
-  const int S = plan.samples;
-  SampleBatches sb;
-  sb.order.resize(S);
-  // Dense box id from the three piece numbers; a counting sort keeps plan order in a box.
-  int n[3];
-  for (int a = 0; a < 3; ++a)
-    n[a] = (a < 2 ? plan.axis_offset[a + 1] : (int)plan.pieces.size()) - plan.axis_offset[a];
-  auto box = [&](uint32_t k) {
-    return ((long long)((k >> 20) & 1023u) * n[1] + ((k >> 10) & 1023u)) * n[0] + (k & 1023u);
-  };
-  const long long boxes = (long long)n[0] * n[1] * n[2];
-  if (boxes <= 4LL * S + 1024) {
-    std::vector<int> first(boxes + 1, 0);
-    for (int s = 0; s < S; ++s) ++first[box(plan.sample_piece[s]) + 1];
-    std::partial_sum(first.begin(), first.end(), first.begin());
-    for (int s = 0; s < S; ++s) sb.order[first[box(plan.sample_piece[s])]++] = s;
-  } else {  // very fine lattices: more boxes than samples
-    std::iota(sb.order.begin(), sb.order.end(), 0);
-    std::stable_sort(sb.order.begin(), sb.order.end(), [&](int x, int y) {
-      return box(plan.sample_piece[x]) < box(plan.sample_piece[y]);
-    });
-  }
-  for (int i = 0; i < S;) {
-    const uint32_t key = plan.sample_piece[sb.order[i]];
-    int j = i;
-    while (j < S && j - i < kLanes && plan.sample_piece[sb.order[j]] == key) ++j;
-    sb.start.push_back(i);
-    sb.terms.push_back((uint8_t)box_terms(plan, key));
-    i = j;
-  }
-  sb.start.push_back(S);
-  return sb;
-}
-
 void sample_batch(const PlanView& pv, const float* D, const SampleBatches& sb, long long b,
                   float* value, float* jacobian) {
   const int* ids = sb.order.data() + sb.start[b];
@@ -104,5 +114,7 @@ void sample_batch(const PlanView& pv, const float* D, const SampleBatches& sb, l
   if (jacobian) return sample_box<true>(sb.terms[b], pv, D, ids, n, value, jacobian);
   return sample_box<false>(sb.terms[b], pv, D, ids, n, value, nullptr);
 }
+
+SFFD_ISA_END
 
 }  // namespace sffd

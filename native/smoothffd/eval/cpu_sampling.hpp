@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "smoothffd/core/isa.hpp"
 #include "smoothffd/eval/plan_view.hpp"
 
 namespace sffd {
@@ -24,9 +25,13 @@ struct SampleBatches {
 
 SampleBatches make_sample_batches(const Plan& plan);
 
+SFFD_ISA_BEGIN  // one copy per ISA (core/isa.hpp)
+
 // F (3 floats) and J (9 floats) of every sample of batch b into value + 3 s, jacobian + 9 s.
 // jacobian == nullptr: values only (the derivative sums are skipped).
 void sample_batch(const PlanView& pv, const float* D, const SampleBatches& sb, long long b,
                   float* value, float* jacobian);
+
+SFFD_ISA_END
 
 }  // namespace sffd

@@ -5,6 +5,7 @@
 
 namespace sffd {
 
+#if SFFD_ISA_PRIMARY  // plan-time part: the baseline copy only
 GridBasisLanes make_grid_basis_lanes(const Plan& plan) {
   GridBasisLanes gb;
   const int G = plan.grid;
@@ -14,6 +15,9 @@ GridBasisLanes make_grid_basis_lanes(const Plan& plan) {
     for (int k = 0; k < 10; ++k) gb.basis[(size_t)k * gb.padded + g] = plan.grid_basis[10 * (size_t)g + k];
   return gb;
 }
+#endif  // SFFD_ISA_PRIMARY
+
+SFFD_ISA_BEGIN  // per-frame part: one copy per ISA (core/isa.hpp)
 
 void patch_grid_normals(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb, int p,
                         float* normals) {
@@ -41,5 +45,7 @@ void patch_grid_normals(const PlanView& pv, const FrameView& fv, const GridBasis
     }
   }
 }
+
+SFFD_ISA_END
 
 }  // namespace sffd

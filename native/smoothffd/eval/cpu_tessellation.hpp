@@ -7,6 +7,7 @@
 
 #include <vector>
 
+#include "smoothffd/core/isa.hpp"
 #include "smoothffd/eval/plan_view.hpp"
 
 namespace sffd {
@@ -18,8 +19,12 @@ struct GridBasisLanes {
 
 GridBasisLanes make_grid_basis_lanes(const Plan& plan);
 
+SFFD_ISA_BEGIN  // one copy per ISA (core/isa.hpp)
+
 // Unit normals of patch p at its G grid points into normals (padded floats x 3, SoA).
 void patch_grid_normals(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb, int p,
                         float* normals);
+
+SFFD_ISA_END
 
 }  // namespace sffd

@@ -10,9 +10,13 @@
 #include <immintrin.h>
 #endif
 
+#include "smoothffd/core/isa.hpp"
+
 namespace sffd {
 
 constexpr int kLanes = 8;
+
+SFFD_ISA_BEGIN
 
 #if defined(__GNUC__) || defined(__clang__)
 struct Lanes {
@@ -62,5 +66,7 @@ inline float sum(Lanes a) {
   for (int i = 1; i < kLanes; ++i) s += a[i];
   return s;
 }
+
+SFFD_ISA_END
 
 }  // namespace sffd

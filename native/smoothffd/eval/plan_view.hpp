@@ -4,6 +4,7 @@
 
 #include <cstdint>
 
+#include "smoothffd/core/isa.hpp"
 #include "smoothffd/plan/plan.hpp"
 
 namespace sffd {
@@ -51,6 +52,8 @@ struct FrameView {
   float* corner_normals;   // T x 3 x 3
 };
 
+SFFD_ISA_BEGIN
+
 // Host view of a plan's vectors (the CUDA evaluator builds the same from device copies).
 inline PlanView host_view(const Plan& p) {
   PlanView v{};
@@ -96,5 +99,7 @@ inline PlanView host_view(const Plan& p) {
   v.render_triangles = p.render_triangles.data();
   return v;
 }
+
+SFFD_ISA_END
 
 }  // namespace sffd

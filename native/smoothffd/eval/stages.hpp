@@ -14,6 +14,8 @@
 
 namespace sffd {
 
+SFFD_ISA_BEGIN
+
 // Per-axis weights of sample s with C terms an axis (C a compile-time size, so on the GPU the
 // arrays stay in registers; a loop over the run-time term count would put them in local
 // memory). Terms beyond a piece's count get weight 0: its coefficients are 0 there, and the
@@ -238,5 +240,7 @@ SFFD_HD V3 tessellate_normal(const PlanView& pv, const FrameView& fv, int p, int
   const float* cp = fv.patch_normal + 30 * (long long)p;
   return unit_patch_normal(eval_cubic(pv.grid_basis + 10 * g, cp), cp);
 }
+
+SFFD_ISA_END
 
 }  // namespace sffd

@@ -8,6 +8,8 @@
 
 namespace sffd {
 
+SFFD_ISA_BEGIN
+
 // Factored contraction with term counts known at compile time: contract w first, then v,
 // then u (about 40% fewer multiply-adds than the plain triple loop, and fully unrolled).
 template <class T, class TD, int CU, int CV, int CW>
@@ -89,5 +91,7 @@ SFFD_HD void compose_deformation(const T p[3], T weight, const T value[3], const
     }
   }
 }
+
+SFFD_ISA_END
 
 }  // namespace sffd

@@ -12,6 +12,8 @@ namespace sffd {
 constexpr int kCubicCount = 10;
 constexpr int kCentre = 9;
 
+SFFD_ISA_BEGIN
+
 // Exponents of the barycentric coordinates (of corners 0, 1, 2) of each control point.
 SFFD_HD void cubic_exponents(int k, int e[3]) {
   const int table[10][3] = {{3, 0, 0}, {0, 3, 0}, {0, 0, 3}, {2, 1, 0}, {1, 2, 0},
@@ -79,5 +81,7 @@ SFFD_HD T cubic_power_eval(const T a[10], float s, float t) {
   const T x = c1 + s * (c2 + s * a[kA30]);
   return (a[kA00] + t * c0) + s * x;
 }
+
+SFFD_ISA_END
 
 }  // namespace sffd

@@ -1,0 +1,67 @@
+// The per-frame loops of CpuEvaluator (eval/cpu_frame.hpp), compiled once per ISA.
+#include "smoothffd/eval/cpu_frame.hpp"
+
+#include "smoothffd/eval/stages.hpp"
+
+namespace sffd {
+
+SFFD_ISA_BEGIN
+
+namespace {
+
+void sample_range(const PlanView& pv, const float* D, const SampleBatches& sb, long long b,
+                  long long e, float* value, float* jacobian, int jacobian_below) {
+  const int* order = sb.order.data();
+  const int* start = sb.start.data();
+  const bool every = jacobian_below >= pv.samples;
+  for (long long i = b; i < e; ++i) {
+    bool with_jacobian = jacobian && every;
+    if (jacobian && !every)
+      for (int k = start[i]; k < start[i + 1]; ++k) with_jacobian |= order[k] < jacobian_below;
+    sample_batch(pv, D, sb, i, value, with_jacobian ? jacobian : nullptr);
+  }
+}
+
+void adjust_edges(const PlanView& pv, const FrameView& fv, long long b, long long e) {
+  for (long long i = b; i < e; ++i) adjust_edge(pv, fv, (int)i);
+}
+
+void fit_patches(const PlanView& pv, const FrameView& fv, const FitColumns& fc, long long b,
+                 long long e) {
+  for (long long p = b; p < e; ++p)
+    fit_patch_lanes(pv, fv, fc, (int)p, fv.patch_control + 30 * p,
+                    fv.patch_normal ? fv.patch_normal + 30 * p : nullptr);
+}
+
+void tessellate_positions(const PlanView& pv, const FrameView& fv, long long b, long long e) {
+  for (long long o = b; o < e; ++o) tessellate_position(pv, fv, (int)o);
+}
+
+void tessellate_normals(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb,
+                        long long b, long long e, float* normals) {
+  const int LL = pv.level * pv.level;
+  const int P = gb.padded;
+  for (long long p = b; p < e; ++p) {
+    patch_grid_normals(pv, fv, gb, (int)p, normals);
+    float* out = fv.corner_normals + 9 * p * LL;
+    for (int i = 0; i < 3 * LL; ++i) {
+      const int g = pv.local_triangles[i];
+      out[3 * i] = normals[g];
+      out[3 * i + 1] = normals[P + g];
+      out[3 * i + 2] = normals[2 * P + g];
+    }
+  }
+}
+
+}  // namespace
+
+SFFD_ISA_END
+
+#if defined(SFFD_ISA_V3)
+extern const CpuFrameKernels cpu_frame_kernels_v3 = {
+#else
+extern const CpuFrameKernels cpu_frame_kernels_baseline = {
+#endif
+    SFFD_ISA_NAME, sample_range, adjust_edges, fit_patches, tessellate_positions, tessellate_normals};
+
+}  // namespace sffd

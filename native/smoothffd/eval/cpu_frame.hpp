@@ -1,0 +1,41 @@
+// The per-frame loops of CpuEvaluator, one copy per ISA (runtime dispatch, core/isa.hpp).
+//
+// Each function runs one stage over the elements [b, e) of a parallel_for chunk; the threads
+// stay in CpuEvaluator (baseline code), so these copies compile no std:: code. The baseline
+// build defines the table cpu_frame_kernels_baseline (x86-64-v2 for shipped builds), the
+// -DSFFD_ISA_V3 build of the same file cpu_frame_kernels_v3 (AVX2 + FMA); CpuEvaluator takes
+// one by CPUID (cpu_isa()). Results of the two agree to float rounding (FMA contraction, the
+// sums are the same otherwise); each is bitwise the same for every thread count.
+#pragma once
+
+#include <cstdint>
+
+#include "smoothffd/core/isa.hpp"
+#include "smoothffd/eval/cpu_fitting.hpp"
+#include "smoothffd/eval/cpu_sampling.hpp"
+#include "smoothffd/eval/cpu_tessellation.hpp"
+#include "smoothffd/eval/plan_view.hpp"
+
+namespace sffd {
+
+struct CpuFrameKernels {
+  const char* isa;  // "x86-64-v2", "x86-64-v3", ... (SFFD_ISA_NAME of the copy)
+  // Sampling of batches [b, e): F into value; J into jacobian unless it is null, and then
+  // only for the batches holding a sample numbered below jacobian_below (>= samples: all).
+  void (*sample)(const PlanView& pv, const float* D, const SampleBatches& sb, long long b,
+                 long long e, float* value, float* jacobian, int jacobian_below);
+  void (*adjust_edges)(const PlanView& pv, const FrameView& fv, long long b, long long e);
+  // Geometry patches into fv.patch_control, normal patches into fv.patch_normal unless null.
+  void (*fit_patches)(const PlanView& pv, const FrameView& fv, const FitColumns& fc, long long b,
+                      long long e);
+  void (*tessellate_positions)(const PlanView& pv, const FrameView& fv, long long b, long long e);
+  // Corner normals of patches [b, e) into fv.corner_normals; scratch: 3 * gb.padded floats.
+  void (*tessellate_normals)(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb,
+                             long long b, long long e, float* scratch);
+};
+
+// Data, not code: the tables hold the addresses of the per-ISA functions.
+extern const CpuFrameKernels cpu_frame_kernels_baseline;
+extern const CpuFrameKernels cpu_frame_kernels_v3;  // only with SFFD_HAVE_ISA_V3 (CMake)
+
+}  // namespace sffd

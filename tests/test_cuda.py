@@ -98,11 +98,11 @@ def angles(a, b):
     return np.arctan2(c, d)
 
 
-def check(mesh, lat, level, path):
+def check(mesh, lat, level, path, shared_memory_limit=0):
     plan = smoothffd.Deformer(mesh, lat, level=level, device="cpu").plan
     vals = np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32)
     pc, nc, _ = _core.CpuEvaluator(plan).evaluate(vals)
-    ev = _core.CudaEvaluator(plan, path)
+    ev = _core.CudaEvaluator(plan, path, shared_memory_limit=shared_memory_limit)
     assert ev.path == path
     ev.poison()
     pg, ng, times = ev.evaluate(vals)
@@ -463,3 +463,73 @@ def test_loose_vertices(path):
     plan = smoothffd.Deformer(mesh, bspline(rng), level=4, device="cpu").plan
     assert plan.output_vertices > len(V) + len(extra)
     check(mesh, bspline(rng), level=4, path=path)
+
+
+def torus(nu=40, nv=30, R=1.0, r=0.4):
+    """bench/workloads.py's W1 mesh, smaller: a torus with exact smooth normals."""
+    u = np.linspace(0, 2 * np.pi, nu, endpoint=False)
+    v = np.linspace(0, 2 * np.pi, nv, endpoint=False)
+    U, Vv = np.meshgrid(u, v, indexing="ij")
+    P = np.stack([(R + r * np.cos(Vv)) * np.cos(U), (R + r * np.cos(Vv)) * np.sin(U), r * np.sin(Vv)], -1)
+    N = np.stack([np.cos(Vv) * np.cos(U), np.cos(Vv) * np.sin(U), np.sin(Vv)], -1)
+    idx = np.arange(nu * nv).reshape(nu, nv)
+    a, b = idx, np.roll(idx, -1, axis=0)
+    c, d = np.roll(idx, -1, axis=1), np.roll(b, -1, axis=1)
+    F = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
+    P, N = P.reshape(-1, 3), N.reshape(-1, 3)
+    return smoothffd.Mesh(P, F, corner_normals=N[F.reshape(-1)])
+
+
+def w1_lattice(seed=0):
+    """W1's lattice (bench/workloads.py): 5x5x5 control points of degree 2, 5% of the box."""
+    rng = np.random.default_rng(seed)
+    lat = smoothffd.BSplineLattice.identity([-1.5, -1.5, -0.5], [1.5, 1.5, 0.5], shape=(5, 5, 5))
+    return lat.with_control_points(lat.control_points + rng.uniform(-0.05, 0.05, lat.control_points.shape))
+
+
+SMALLER_DEVICES = {"sm_75 (64 KB)": 64 * 1024, "sm_86/89 (99 KB)": 99 * 1024, "48 KB": 48 * 1024}
+
+
+@pytest.mark.parametrize("limit", list(SMALLER_DEVICES.values()), ids=list(SMALLER_DEVICES))
+@pytest.mark.parametrize("plan_kind", ["w1", "sharp", "large_lattice"])
+def test_smaller_device_shared_memory(plan_kind, limit):
+    """The launches planned for a GPU with less shared memory a block than this one (consumer
+    GPUs: 64 KB on sm_75, 99 KB on sm_86 / sm_89): the inline kernel's table (boxes, weights
+    or the staged kernels) and blocks an SM follow the emulated limits, and the result is the
+    CPU evaluator's as on the full device."""
+    rng = np.random.default_rng(90)
+    if plan_kind == "w1":
+        mesh, lat, level = torus(), w1_lattice(), 10
+    elif plan_kind == "sharp":
+        mesh, lat, level = cube(sharp=True), bspline(rng, degree=(3, 2, 1)), 7
+    else:
+        mesh, lat, level = icosphere(2), bspline(rng, shape=(9, 8, 7), amount=0.03), 6
+    check(mesh, lat, level=level, path="fused", shared_memory_limit=limit)
+    plan = smoothffd.Deformer(mesh, lat, level=level, device="cpu").plan
+    full = _core.CudaEvaluator(plan, "fused")
+    ev = _core.CudaEvaluator(plan, "fused", shared_memory_limit=limit)
+    vals = np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32)
+    ev.evaluate_device(vals)  # the first launch sets the blocks an SM
+    sm, fm = ev.shared_memory, full.shared_memory
+    assert sm["per_block"] == min(limit, fm["per_block"])
+    assert sm["per_multiprocessor"] <= min(limit + sm["reserved_per_block"], fm["per_multiprocessor"])
+    assert sm["inline_dynamic_max"] <= fm["inline_dynamic_max"]
+    assert sm["inline_static"] + sm["inline_dynamic_max"] <= sm["per_block"]
+    if ev.fused_kernel.startswith("inline"):
+        assert 0 < sm["inline_dynamic"] <= sm["inline_dynamic_max"]
+        blocks = sm["inline_blocks_per_multiprocessor"]
+        assert blocks >= 1
+        assert blocks * (sm["inline_static"] + sm["inline_dynamic"] + sm["reserved_per_block"]) \
+            <= sm["per_multiprocessor"] or blocks == 1
+    # A smaller device never gets a richer kernel than the full one.
+    order = {"inline (boxes)": 2, "inline (weights)": 1, "staged": 0}
+    assert order[ev.fused_kernel] <= order[full.fused_kernel]
+    print(plan_kind, limit, ev.fused_kernel, sm)
+
+
+def test_shared_memory_limit_validated():
+    rng = np.random.default_rng(2)
+    plan = smoothffd.Deformer(icosphere(1), bspline(rng), level=2, device="cpu").plan
+    with pytest.raises(ValueError, match="shared_memory_limit"):
+        _core.CudaEvaluator(plan, "fused", shared_memory_limit=16 * 1024)
+    assert _core.CudaEvaluator(plan, "fused", shared_memory_limit=0).shared_memory["per_block"] > 48 * 1024

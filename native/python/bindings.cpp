@@ -12,9 +12,9 @@
 #include "smoothffd/eval/cpu_evaluator.hpp"
 #include "smoothffd/lattice/lattice_spec.hpp"
 #include "smoothffd/plan/plan.hpp"
-#ifdef SMOOTHFFD_HAVE_CUDA
-#include "smoothffd/cuda/cuda_evaluator.hpp"
-#endif
+// The CUDA backend, loaded from libsmoothffd_cuda.so when first asked for: the module needs no
+// CUDA library (cuda/cuda_loader.hpp).
+#include "smoothffd/cuda/cuda_loader.hpp"
 
 namespace py = pybind11;
 using namespace sffd;
@@ -249,21 +249,45 @@ PYBIND11_MODULE(_core, m) {
            "(positions (N, 3), stage times): evaluate's positions, bitwise, without the normals "
            "(Jacobians only at the sub-vertices, no normal patches)");
 
-#ifdef SMOOTHFFD_HAVE_CUDA
-  m.attr("cuda_compiled") = true;
+  // Whether the CUDA backend (libsmoothffd_cuda.so) is next to the module: loads nothing.
+  m.attr("cuda_compiled") = cuda_library_present();
+  m.attr("cuda_library") = cuda_library_path();
   m.def("cuda_status", []() { return cuda_status(); },
-        "(usable, message): whether a CUDA device can run the CUDA evaluator, and why not");
+        "(usable, message): whether a CUDA device can run the CUDA evaluator, and precisely why not "
+        "(backend not installed or failed to load, no NVIDIA driver, driver too old, no device, no "
+        "kernels for the device's architecture); loads the CUDA backend on first call");
   // CUDA errors arrive as CudaError (RuntimeError) or CudaOutOfMemory (MemoryError).
   py::class_<CudaEvaluator, std::shared_ptr<CudaEvaluator>>(m, "CudaEvaluator")
-      .def(py::init([](std::shared_ptr<Plan> plan, const std::string& path) {
-             return std::make_shared<CudaEvaluator>(plan, path);
+      .def(py::init([](std::shared_ptr<Plan> plan, const std::string& path, int64_t shared_memory_limit) {
+             return std::make_shared<CudaEvaluator>(plan, path, shared_memory_limit);
            }),
-           py::arg("plan"), py::arg("path") = "", py::keep_alive<1, 2>())
+           py::arg("plan"), py::arg("path") = "", py::arg("shared_memory_limit") = 0, py::keep_alive<1, 2>(),
+           "shared_memory_limit: 0 (the device's own limits) or the shared memory (bytes, at least 48 KiB) "
+           "a block may opt in to on a smaller GPU to emulate: the launches are planned for it (tests)")
       .def_property("path", &CudaEvaluator::path, &CudaEvaluator::set_path,
                     "'fused' or 'cublas' (default: $SMOOTHFFD_CUDA_PATH, else fused)")
       .def_property_readonly("output_bytes", &CudaEvaluator::output_bytes)
       .def_property_readonly("device_bytes", &CudaEvaluator::device_bytes)
       .def_property_readonly("fused_kernel", &CudaEvaluator::fused_kernel)
+      .def_property_readonly(
+          "shared_memory",
+          [](const CudaEvaluator& ev) {
+            const sffd_cuda_limits l = ev.limits();
+            py::dict d;
+            d["per_block"] = l.per_block;
+            d["per_multiprocessor"] = l.per_multiprocessor;
+            d["reserved_per_block"] = l.reserved_per_block;
+            d["inline_static"] = l.inline_static;
+            d["inline_dynamic_max"] = l.inline_dynamic_max;
+            d["inline_dynamic"] = l.inline_dynamic;
+            d["inline_blocks_per_multiprocessor"] = l.inline_blocks_per_multiprocessor;
+            d["multiprocessors"] = l.multiprocessors;
+            d["registers_per_multiprocessor"] = l.registers_per_multiprocessor;
+            d["compute_capability"] = l.compute_capability;
+            return d;
+          },
+          "the shared-memory limits the launches are planned with (the device's or the emulated "
+          "device's) and what they leave the inline kernel")
       .def("evaluate",
            [](CudaEvaluator& ev, Arr<float> D, py::object positions, py::object corner_normals) {
              return run_evaluator(ev, D, positions, corner_normals);
@@ -340,10 +364,4 @@ PYBIND11_MODULE(_core, m) {
              return times_dict(b.benchmark(D.data(), iters));
            },
            py::arg("values"), py::arg("iters") = 200);
-#else
-  m.attr("cuda_compiled") = false;
-  m.def("cuda_status", []() {
-    return std::make_pair(false, std::string("smoothffd was built without CUDA (nvcc not found at build time)"));
-  });
-#endif
 }

@@ -3,22 +3,33 @@
 // management, timing and error handling.
 #include "smoothffd/cuda/cuda_evaluator.hpp"
 
-#include <cublas_v2.h>
+#include <cublas_v2.h>  // types only: libcublas is loaded when the cublas path is first asked for
 #include <cuda_pipeline.h>
 #include <cuda_runtime.h>
+#include <dlfcn.h>
 
 #include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
+#include <mutex>
+#include <type_traits>
 #include <unordered_map>
 
 #include "smoothffd/core/parallel.hpp"
 #include "smoothffd/eval/stages.hpp"
 #include "smoothffd/plan/tessellation.hpp"
 
+#ifdef SFFD_HAVE_BUILD_H
+#include "sffd_cuda_build.h"  // SFFD_CUDA_ARCHS: the architectures built (native/CMakeLists.txt)
+#endif
+#ifndef SFFD_CUDA_ARCHS
+#define SFFD_CUDA_ARCHS "unknown architectures"
+#endif
+
 namespace sffd {
+namespace cuda_impl {
 
 namespace {
 
@@ -60,6 +71,65 @@ const char* cublas_name(cublasStatus_t s) {
     if (st_ != CUBLAS_STATUS_SUCCESS)                                                        \
       throw CudaError(std::string("cuBLAS error in ") + #expr + ": " + cublas_name(st_));    \
   } while (0)
+
+// cuBLAS, only for the paper's reference "cublas" path: loaded with dlopen when that path is
+// first asked for (so that neither the module nor this library needs libcublas to load, and the
+// default fused path runs without it). Its own dependency, libcublasLt, is its business. The
+// few functions the path calls, by their exported (_v2) names.
+struct CublasApi {
+  cublasStatus_t (*create)(cublasHandle_t*) = nullptr;
+  cublasStatus_t (*destroy)(cublasHandle_t) = nullptr;
+  cublasStatus_t (*set_stream)(cublasHandle_t, cudaStream_t) = nullptr;
+  cublasStatus_t (*set_math_mode)(cublasHandle_t, cublasMath_t) = nullptr;
+  cublasStatus_t (*set_workspace)(cublasHandle_t, void*, size_t) = nullptr;
+  cublasStatus_t (*sgemm)(cublasHandle_t, cublasOperation_t, cublasOperation_t, int, int, int, const float*,
+                          const float*, int, const float*, int, const float*, float*, int) = nullptr;
+};
+
+#define SFFD_STR2(x) #x
+#define SFFD_STR(x) SFFD_STR2(x)
+constexpr const char* kCublasLibrary = "libcublas.so." SFFD_STR(CUBLAS_VER_MAJOR);
+
+// The table, loaded once (never unloaded); throws CudaError saying what is missing.
+const CublasApi& cublas_api() {
+  static std::mutex mu;
+  static CublasApi api;
+  static std::string failure;
+  static bool tried = false;
+  std::lock_guard<std::mutex> lock(mu);
+  if (!tried) {
+    tried = true;
+    // The loader's search (LD_LIBRARY_PATH, ld.so.cache), then the toolkit's usual places.
+    std::string tried_text;
+    void* h = nullptr;
+    const std::string dirs[] = {"", "/usr/local/cuda/lib64/", "/usr/local/cuda/lib/",
+                                "/usr/local/cuda/targets/x86_64-linux/lib/"};
+    for (const std::string& d : dirs) {
+      h = dlopen((d + kCublasLibrary).c_str(), RTLD_NOW | RTLD_LOCAL);
+      if (h) break;
+      const char* e = dlerror();
+      if (d.empty()) tried_text = e ? e : "not found";
+    }
+    if (!h) {
+      failure = std::string("the cublas path needs ") + kCublasLibrary + " from the CUDA toolkit: " + tried_text +
+                " (also not in /usr/local/cuda/lib64); the default path, 'fused', does not need it";
+    } else {
+      auto sym = [&](const char* name, auto& fn) {
+        void* f = dlsym(h, name);
+        if (!f && failure.empty()) failure = std::string(kCublasLibrary) + " has no " + name;
+        fn = reinterpret_cast<std::remove_reference_t<decltype(fn)>>(f);
+      };
+      sym("cublasCreate_v2", api.create);
+      sym("cublasDestroy_v2", api.destroy);
+      sym("cublasSetStream_v2", api.set_stream);
+      sym("cublasSetMathMode", api.set_math_mode);
+      sym("cublasSetWorkspace_v2", api.set_workspace);
+      sym("cublasSgemm_v2", api.sgemm);
+    }
+  }
+  if (!failure.empty()) throw CudaError(failure);
+  return api;
+}
 
 // Device allocation owned by a vector of frees.
 struct DeviceArena {
@@ -764,14 +834,82 @@ Path parse_path(const std::string& s) {
   throw std::invalid_argument("CUDA path: expected 'fused' or 'cublas', got '" + v + "'");
 }
 
-void init_device() {
+std::string version_string(int v) { return std::to_string(v / 1000) + "." + std::to_string(v % 1000 / 10); }
+
+std::string error_text(cudaError_t err) {
+  return std::string(cudaGetErrorName(err)) + ": " + cudaGetErrorString(err);
+}
+
+// cuda_status's checks, in the order a user would fix them.
+std::pair<bool, std::string> device_status() {
+  // 1. The driver. The CUDA runtime (linked statically) loads libcuda.so.1 itself; loading it
+  //    here first tells "no driver" apart from the runtime's other errors.
+  static void* libcuda = nullptr;  // kept loaded once found
+  if (!libcuda) libcuda = dlopen("libcuda.so.1", RTLD_NOW | RTLD_LOCAL);
+  if (!libcuda) {
+    const char* e = dlerror();
+    return {false, std::string("no NVIDIA driver: libcuda.so.1 could not be loaded (") + (e ? e : "not found") +
+                       "); install the NVIDIA driver to use the GPU"};
+  }
+  int driver = 0;
+  cudaError_t err = cudaDriverGetVersion(&driver);
+  if (err != cudaSuccess || driver == 0) {
+    cudaGetLastError();
+    return {false, std::string("the NVIDIA driver (libcuda.so.1) did not report its CUDA version") +
+                       (err != cudaSuccess ? " (" + error_text(err) + ")" : std::string())};
+  }
+  // 2. Driver vs runtime: a CUDA 13.x runtime needs a driver for CUDA 13 or newer.
+  if (driver / 1000 < CUDART_VERSION / 1000)
+    return {false, "the NVIDIA driver is too old: it supports CUDA " + version_string(driver) + ", this build's CUDA runtime " +
+                       version_string(CUDART_VERSION) + " needs a driver for CUDA " +
+                       std::to_string(CUDART_VERSION / 1000) + ".0 or newer (update the NVIDIA driver)"};
+  // 3. A device.
   int n = 0;
-  cudaError_t err = cudaGetDeviceCount(&n);
+  err = cudaGetDeviceCount(&n);
   if (err != cudaSuccess) {
     cudaGetLastError();
-    throw CudaError(std::string("no usable CUDA device: ") + cudaGetErrorString(err));
+    if (err == cudaErrorInsufficientDriver)
+      return {false, "the NVIDIA driver is too old for this build's CUDA runtime " + version_string(CUDART_VERSION) +
+                         " (driver supports CUDA " + version_string(driver) + "): " + error_text(err)};
+    if (err == cudaErrorNoDevice)
+      return {false, "no CUDA device found (NVIDIA driver for CUDA " + version_string(driver) + " present)"};
+    return {false, "cudaGetDeviceCount failed: " + error_text(err)};
   }
-  if (n == 0) throw CudaError("no usable CUDA device: no device found");
+  if (n == 0) return {false, "no CUDA device found (NVIDIA driver for CUDA " + version_string(driver) + " present)"};
+  int dev = 0;
+  err = cudaGetDevice(&dev);
+  cudaDeviceProp prop;
+  if (err == cudaSuccess) err = cudaGetDeviceProperties(&prop, dev);
+  if (err != cudaSuccess) {
+    cudaGetLastError();
+    return {false, "cudaGetDeviceProperties failed: " + error_text(err)};
+  }
+  const std::string cc = std::to_string(prop.major) + "." + std::to_string(prop.minor);
+  // 4. Kernels for its architecture: SASS for it, or PTX the driver can compile for it.
+  cudaFuncAttributes fa;
+  err = cudaFuncGetAttributes(&fa, k_fill_nan);
+  if (err != cudaSuccess) {
+    cudaGetLastError();
+    if (err == cudaErrorNoKernelImageForDevice || err == cudaErrorInvalidDeviceFunction ||
+        err == cudaErrorUnsupportedPtxVersion || err == cudaErrorInvalidPtx || err == cudaErrorInvalidSource)
+      return {false, std::string(prop.name) + " has compute capability " + cc +
+                         ", for which this build has no kernels (built for " SFFD_CUDA_ARCHS "): " + error_text(err)};
+    return {false, "CUDA initialization failed on " + std::string(prop.name) + ": " + error_text(err)};
+  }
+  // 5. A context.
+  err = cudaFree(nullptr);
+  if (err != cudaSuccess) {
+    cudaGetLastError();
+    return {false, "CUDA context creation failed on " + std::string(prop.name) + ": " + error_text(err)};
+  }
+  return {true, std::string(prop.name) + " (compute capability " + cc + ", " + std::to_string(prop.totalGlobalMem >> 20) +
+                    " MiB, driver for CUDA " + version_string(driver) + ", runtime " + version_string(CUDART_VERSION) +
+                    ", kernels " + SFFD_CUDA_ARCHS + ")"};
+}
+
+void init_device() {
+  auto st = device_status();
+  if (!st.first) throw CudaError("no usable CUDA device: " + st.second);
 }
 
 // PatchRender of every patch from the plan's render vertices; every (patch, grid point) is
@@ -919,28 +1057,11 @@ bool place_samples(const Plan& p, const std::vector<InlineColumn>& col, const st
 
 }  // namespace
 
-std::pair<bool, std::string> cuda_status() {
-  int n = 0;
-  cudaError_t err = cudaGetDeviceCount(&n);
-  if (err != cudaSuccess) {
-    cudaGetLastError();
-    return {false, std::string("cudaGetDeviceCount failed: ") + cudaGetErrorString(err)};
-  }
-  if (n == 0) return {false, "no CUDA device found"};
-  int dev = 0;
-  cudaDeviceProp prop;
-  err = cudaGetDeviceProperties(&prop, dev);
-  if (err != cudaSuccess) return {false, std::string("cudaGetDeviceProperties failed: ") + cudaGetErrorString(err)};
-  if (prop.major < 9)
-    return {false, std::string(prop.name) + " has compute capability " + std::to_string(prop.major) + "." +
-                       std::to_string(prop.minor) + "; this build needs 9.0 or newer (sm_90 + PTX)"};
-  err = cudaFree(nullptr);  // creates the context
-  if (err != cudaSuccess) {
-    cudaGetLastError();
-    return {false, std::string("CUDA context creation failed: ") + cudaGetErrorString(err)};
-  }
-  return {true, std::string(prop.name) + " (compute capability " + std::to_string(prop.major) + "." +
-                    std::to_string(prop.minor) + ", " + std::to_string(prop.totalGlobalMem >> 20) + " MiB)"};
+std::pair<bool, std::string> cuda_status() { return device_status(); }
+
+const char* build_info() {
+  static const std::string info = "CUDA runtime " + version_string(CUDART_VERSION) + " (static), kernels " SFFD_CUDA_ARCHS;
+  return info.c_str();
 }
 
 // ================================================================= CudaEvaluator
@@ -1014,24 +1135,109 @@ struct CudaEvaluator::Impl {
   // copy back
   PinnedBuffer h_D, h_out;
   cudaStream_t stream = nullptr;
+  const CublasApi* cb = nullptr;  // set with the handle (ensure_cublas)
   cublasHandle_t cublas = nullptr;
   void* cublas_ws = nullptr;
   Events events;
   size_t nD = 0;
+  // Shared-memory limits the launches are planned with (plan_limits): the device's own, or
+  // those of the smaller device emulated (shared_memory_limit > 0).
+  int64_t shared_memory_limit = 0;
+  sffd_cuda_limits lim{};
+  size_t inline_dyn_max = 0;     // largest dynamic table of the inline kernel on this device
+  size_t inline_dyn_device = 0;  // the same on the real device (the kernels' opt-in attribute)
 
   ~Impl() {
-    if (cublas) cublasDestroy(cublas);
+    if (cublas) cb->destroy(cublas);
     if (cublas_ws) cudaFree(cublas_ws);
     if (stream) cudaStreamDestroy(stream);
   }
 
+  // The cuBLAS path's handle (libcublas loaded on first use: CudaError when it is missing)
+  // and scratch.
   void ensure_cublas() {
-    if (X) return;
+    if (cublas) return;
+    const CublasApi& api = cublas_api();
     const long long P = pv.patches, K = pv.columns, G = pv.grid;
-    X = arena.alloc<float>(K * 6 * P);
-    F = arena.alloc<float>(10 * 6 * P);
-    C = arena.alloc<float>(10 * 6 * P);
-    Q = arena.alloc<float>(G * 6 * P);
+    if (!X) {
+      X = arena.alloc<float>(K * 6 * P);
+      F = arena.alloc<float>(10 * 6 * P);
+      C = arena.alloc<float>(10 * 6 * P);
+      Q = arena.alloc<float>(G * 6 * P);
+    }
+    if (!cublas_ws) {
+      const size_t ws = 32u << 20;
+      CK(cudaMalloc(&cublas_ws, ws));
+    }
+    cublasHandle_t h = nullptr;
+    CKB(api.create(&h));
+    cb = &api;
+    cublas = h;
+    CKB(api.set_stream(cublas, stream));
+    CKB(api.set_math_mode(cublas, CUBLAS_DEFAULT_MATH));  // plain FP32, no TF32
+    CKB(api.set_workspace(cublas, cublas_ws, 32u << 20));
+  }
+
+  // The inline kernel that run_inline_c launches for this plan: C terms an axis and its MINB
+  // (the same choice as there); its static shared memory (the larger of boxes / weights).
+  template <int C, int MINB>
+  static size_t inline_static_as() {
+    cudaFuncAttributes a{}, b{};
+    CK(cudaFuncGetAttributes(&a, k_inline<C, true, 32, 4, MINB>));
+    CK(cudaFuncGetAttributes(&b, k_inline<C, false, 32, 4, MINB>));
+    return std::max(a.sharedSizeBytes, b.sharedSizeBytes);
+  }
+  template <int C>
+  size_t inline_static_c() const {
+    const int minb = fused_blocks > 0 ? fused_blocks : 4;
+    if constexpr (C != 3) {
+      (void)minb;
+      return inline_static_as<C, 2>();
+    } else {
+      if (minb == 4) return inline_static_as<C, 4>();
+      if (minb == 6) return inline_static_as<C, 6>();
+      return inline_static_as<C, 5>();
+    }
+  }
+  size_t inline_static() const {
+    if (max_terms > 4) return 0;  // the staged kernels
+    return max_terms <= 2 ? inline_static_c<2>() : max_terms == 3 ? inline_static_c<3>() : inline_static_c<4>();
+  }
+
+  // The device's limits (or the emulated device's) and the inline kernel's dynamic budget:
+  // static + dynamic within what a block may opt in to, and one block (plus the memory the
+  // system reserves a block) within a multiprocessor. Consumer GPUs give a block far less than
+  // an H100 (227 KB): 99 KB on sm_86 / sm_89, 64 KB on sm_75, 163 KB on sm_80.
+  void plan_limits() {
+    int dev = 0, optin = 0, per_sm = 0, reserved = 0, sms = 0, regs = 0, major = 0, minor = 0;
+    CK(cudaGetDevice(&dev));
+    CK(cudaDeviceGetAttribute(&optin, cudaDevAttrMaxSharedMemoryPerBlockOptin, dev));
+    CK(cudaDeviceGetAttribute(&per_sm, cudaDevAttrMaxSharedMemoryPerMultiprocessor, dev));
+    CK(cudaDeviceGetAttribute(&reserved, cudaDevAttrReservedSharedMemoryPerBlock, dev));
+    CK(cudaDeviceGetAttribute(&sms, cudaDevAttrMultiProcessorCount, dev));
+    CK(cudaDeviceGetAttribute(&regs, cudaDevAttrMaxRegistersPerMultiprocessor, dev));
+    CK(cudaDeviceGetAttribute(&major, cudaDevAttrComputeCapabilityMajor, dev));
+    CK(cudaDeviceGetAttribute(&minor, cudaDevAttrComputeCapabilityMinor, dev));
+    lim = sffd_cuda_limits{};
+    lim.per_block = optin;
+    lim.per_multiprocessor = per_sm;
+    if (shared_memory_limit > 0) {
+      lim.per_block = std::min<int64_t>(optin, shared_memory_limit);
+      lim.per_multiprocessor = std::min<int64_t>(per_sm, shared_memory_limit + reserved);
+    }
+    lim.reserved_per_block = reserved;
+    lim.multiprocessors = sms;
+    lim.registers_per_multiprocessor = regs;
+    lim.compute_capability = 10 * major + minor;
+    const size_t st = inline_static();
+    lim.inline_static = (int64_t)st;
+    auto budget = [&](int64_t block, int64_t sm) {
+      const int64_t room = std::min(block, sm - reserved) - (int64_t)st;
+      return (size_t)std::max<int64_t>(0, std::min<int64_t>(room, (int64_t)kInlineSharedBytes));
+    };
+    inline_dyn_max = st ? budget(lim.per_block, lim.per_multiprocessor) : 0;
+    inline_dyn_device = st ? budget(optin, per_sm) : 0;
+    lim.inline_dynamic_max = (int64_t)inline_dyn_max;
   }
 
   // The inline path's tables (InlineArgs, inline_kernels.cuh), corner ownership and loose
@@ -1065,9 +1271,11 @@ struct CudaEvaluator::Impl {
     ia.st_interior = (boundary_points + 1) / 2 * 2;
     ia.st_count = ia.st_interior + interior_points;
     ia.box_count = ia.boxes = (int)box_list.size();
-    if (ia.shared_bytes(p.columns, C) > kInlineSharedBytes || points > kBoxPoints || box_env == 0)
+    // The device's budget (plan_limits): boxes where their polynomials fit, else the
+    // per-sample weights, else (below) the staged kernels.
+    if (ia.shared_bytes(p.columns, C) > inline_dyn_max || points > kBoxPoints || box_env == 0)
       ia.boxes = 0;  // the per-sample weights
-    inline_ok = max_terms <= 4 && n_pieces < 1024 && ia.shared_bytes(p.columns, C) <= kInlineSharedBytes &&
+    inline_ok = max_terms <= 4 && n_pieces < 1024 && ia.shared_bytes(p.columns, C) <= inline_dyn_max &&
                 boundary_points <= 2048 &&  // the list's 11 bits of walk position
                 ia.box_count <= 256 &&    // InlinePatch::box, a byte
                 p.columns - 9 <= kMaxInlineGrid && constraint_columns_as_expected(p);
@@ -1240,10 +1448,18 @@ struct CudaEvaluator::Impl {
       int per_sm = 0, sms = 0, dev = 0;
       CK(cudaGetDevice(&dev));
       CK(cudaDeviceGetAttribute(&sms, cudaDevAttrMultiProcessorCount, dev));
-      // Opt in to the largest table any plan may bring (a per-function setting, shared by
-      // every evaluator), then ask how many blocks of this plan's size fit an SM.
-      CK(cudaFuncSetAttribute(kern, cudaFuncAttributeMaxDynamicSharedMemorySize, (int)kInlineSharedBytes));
+      // Opt in to the largest table any plan may bring on this device (a per-function
+      // setting, shared by every evaluator: the real device's budget, also when this one
+      // emulates a smaller device), then ask how many blocks of this plan's size fit an SM.
+      CK(cudaFuncSetAttribute(kern, cudaFuncAttributeMaxDynamicSharedMemorySize, (int)inline_dyn_device));
       CK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&per_sm, kern, 128, smem));
+      if (shared_memory_limit > 0) {  // the emulated device's multiprocessor holds fewer
+        cudaFuncAttributes fa{};
+        CK(cudaFuncGetAttributes(&fa, kern));
+        const int64_t block = (int64_t)fa.sharedSizeBytes + (int64_t)smem + lim.reserved_per_block;
+        per_sm = std::min<int>(per_sm, (int)(lim.per_multiprocessor / block));
+      }
+      lim.inline_blocks_per_multiprocessor = std::max(1, per_sm);
       inline_grid[slot] = std::max(1, per_sm) * std::max(1, sms);
     }
     InlineArgs ia = inline_args;
@@ -1378,14 +1594,14 @@ struct CudaEvaluator::Impl {
       const float one = 1.0f, zero = 0.0f;
       mark("fit_gemm");
       // F (10 x 6P) = M (10 x K) X (K x 6P); M stored row-major = column-major K x 10.
-      CKB(cublasSgemm(cublas, CUBLAS_OP_T, CUBLAS_OP_N, 10, (int)(6 * P), (int)K, &one, pv.fit_matrix, (int)K, X,
+      CKB(cb->sgemm(cublas, CUBLAS_OP_T, CUBLAS_OP_N, 10, (int)(6 * P), (int)K, &one, pv.fit_matrix, (int)K, X,
                       (int)K, &zero, F, 10));
       mark("fit_finish");
       k_finish<<<blocks_for(P, T), T, 0, stream>>>(pv, fv, F, C);
       CK_LAUNCH(k_finish);
       mark("tessellate_gemm");
       // Q (G x 6P) = B (G x 10) C (10 x 6P); grid_basis stored row-major = column-major 10 x G.
-      CKB(cublasSgemm(cublas, CUBLAS_OP_T, CUBLAS_OP_N, (int)G, (int)(6 * P), 10, &one, pv.grid_basis, 10, C, 10,
+      CKB(cb->sgemm(cublas, CUBLAS_OP_T, CUBLAS_OP_N, (int)G, (int)(6 * P), 10, &one, pv.grid_basis, 10, C, 10,
                       &zero, Q, (int)G));
       mark("tessellate_scatter");
       k_scatter<<<blocks_for(P * G, T), T, 0, stream>>>(pv, fv, Q, C, grid_info, owns, prender, render_shift, normals);
@@ -1407,10 +1623,16 @@ struct CudaEvaluator::Impl {
   }
 };
 
-CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string& path)
+CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string& path,
+                             int64_t shared_memory_limit)
     : plan_(std::move(plan)), impl_(new Impl) {
+  if (shared_memory_limit != 0 && shared_memory_limit < 48 * 1024)
+    throw std::invalid_argument("shared_memory_limit: expected 0 (the device's own limits) or at least 49152 bytes "
+                                "(48 KiB, what every CUDA device gives a block), got " +
+                                std::to_string(shared_memory_limit));
   init_device();
   Impl& m = *impl_;
+  m.shared_memory_limit = shared_memory_limit;
   m.path = parse_path(path);
   if (const char* lanes = std::getenv("SMOOTHFFD_FUSED_LANES")) m.fused_lanes = std::atoi(lanes);
   if (const char* b = std::getenv("SMOOTHFFD_SAMPLE_BLOCKS"))
@@ -1424,13 +1646,8 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
   for (const AxisPieceF& pc : plan_->pieces) m.max_terms = std::max(m.max_terms, std::max(pc.count, pc.degree + 1));
   const Plan& p = *plan_;
   CK(cudaStreamCreateWithFlags(&m.stream, cudaStreamNonBlocking));
-  CKB(cublasCreate(&m.cublas));
-  CKB(cublasSetStream(m.cublas, m.stream));
-  CKB(cublasSetMathMode(m.cublas, CUBLAS_DEFAULT_MATH));  // plain FP32, no TF32
-  const size_t ws = 32u << 20;
-  CK(cudaMalloc(&m.cublas_ws, ws));
-  CKB(cublasSetWorkspace(m.cublas, m.cublas_ws, ws));
   m.events.ensure(16);
+  m.plan_limits();
 
   PlanView& v = m.pv;
   v = host_view(p);
@@ -1524,6 +1741,15 @@ std::string CudaEvaluator::fused_kernel() const {
   const Impl& m = *impl_;
   if (m.fused_fit >= 0 || !m.inline_ok) return "staged";
   return m.inline_args.boxes > 0 ? "inline (boxes)" : "inline (weights)";
+}
+
+sffd_cuda_limits CudaEvaluator::limits() const {
+  sffd_cuda_limits l = impl_->lim;
+  const Impl& m = *impl_;
+  const bool inline_path = m.path == kFused && m.fused_fit < 0 && m.inline_ok;
+  const int C = m.max_terms <= 2 ? 2 : m.max_terms == 3 ? 3 : 4;
+  l.inline_dynamic = inline_path ? (int64_t)m.inline_args.shared_bytes(plan_->columns, C) : 0;
+  return l;
 }
 
 std::string CudaEvaluator::path() const { return impl_->path == kFused ? "fused" : "cublas"; }
@@ -1834,4 +2060,5 @@ StageTimes CudaUpsamplingBaseline::benchmark(const float* D, int iters) {
   return t;
 }
 
+}  // namespace cuda_impl
 }  // namespace sffd

@@ -32,40 +32,40 @@
 //
 // Errors (no device, launch failures, out of memory) throw CudaError (std::runtime_error) or
 // CudaOutOfMemory (std::bad_alloc): never an abort.
+//
+// This is the implementation inside libsmoothffd_cuda.so (namespace sffd::cuda_impl), behind
+// the C boundary of cuda_api.h (cuda_api.cpp); the Python module uses the wrapper of the same
+// interface in cuda_loader.hpp, which loads the library when first asked for.
 #pragma once
 
+#include <cstdint>
 #include <memory>
-#include <new>
-#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "smoothffd/cuda/cuda_api.h"
+#include "smoothffd/cuda/cuda_error.hpp"
 #include "smoothffd/eval/evaluator.hpp"
 
 namespace sffd {
+namespace cuda_impl {
 
-// (usable, message): whether a CUDA device can run the CUDA evaluator, and why not.
+// (usable, message): whether a CUDA device can run the CUDA evaluator, and precisely why not
+// (no driver, driver older than this CUDA runtime, no device, no kernel image for the
+// device's architecture, context creation failed).
 std::pair<bool, std::string> cuda_status();
-
-class CudaError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
-
-class CudaOutOfMemory : public std::bad_alloc {
- public:
-  explicit CudaOutOfMemory(std::string msg) : msg_(std::move(msg)) {}
-  const char* what() const noexcept override { return msg_.c_str(); }
-
- private:
-  std::string msg_;
-};
+// The CUDA runtime version and the architectures this library was built for.
+const char* build_info();
 
 class CudaEvaluator : public Evaluator {
  public:
   // path: "fused", "cublas", or "" (SMOOTHFFD_CUDA_PATH, else the default, fused).
-  explicit CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string& path = "");
+  // shared_memory_limit: 0, the device's own shared-memory limits; else the opt-in shared
+  // memory a block may use on a smaller device to emulate (at least 48 KiB; tests): the inline
+  // kernel's tables (boxes, weights or the staged kernels) and blocks an SM are chosen for it.
+  explicit CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string& path = "",
+                         int64_t shared_memory_limit = 0);
   ~CudaEvaluator() override;
   std::string name() const override { return "cuda"; }
   const Plan& plan() const override { return *plan_; }
@@ -86,6 +86,8 @@ class CudaEvaluator : public Evaluator {
   // Which kernels the fused path runs for this plan: "inline (boxes)" (the default where the
   // lattice boxes fit in shared memory), "inline (weights)", or "staged".
   std::string fused_kernel() const;
+  // The shared-memory limits the launches were planned with (cuda_api.h).
+  sffd_cuda_limits limits() const;
   // Fills the device outputs and intermediates with NaN (tests: every element must be written).
   void poison();
   // Copies of the compact device output: positions (N x 3), render-vertex normals (R x 3).
@@ -124,4 +126,5 @@ class CudaUpsamplingBaseline {
   std::unique_ptr<Impl> impl_;
 };
 
+}  // namespace cuda_impl
 }  // namespace sffd

@@ -194,7 +194,8 @@ struct InlineArgs {
 // with the ~34 KB of static shared memory, 4 blocks fit an SM up to about 22 KB of it, 3
 // beyond: W1 asks for 17 KB at L = 10, more than 22 KB beyond L = 23). Larger lattices (beyond
 // about 1500 control points of degree 2) or levels (beyond 36 with W1's 27 boxes) run the
-// staged path.
+// staged path. On devices that give a block less shared memory (sm_75: 64 KB with the
+// static part), CudaEvaluator lowers it to what the device's limits leave (plan_limits).
 constexpr size_t kInlineSharedBytes = 28 * 1024;
 constexpr int kBoxPoints = 512;  // control values that fit k_inline's ctrl table (32 patches)
 

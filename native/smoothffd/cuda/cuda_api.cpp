@@ -1,0 +1,238 @@
+// The C boundary of libsmoothffd_cuda.so (cuda_api.h): sffd_cuda_api_v1, the library's only
+// exported symbol (cuda_api.map), returns the table of C functions that wrap the C++ evaluator
+// of cuda_evaluator.hpp. Every exception stops here and becomes an error code and message.
+#include "smoothffd/cuda/cuda_api.h"
+
+#include <cstring>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "smoothffd/cuda/cuda_evaluator.hpp"
+
+using sffd::Plan;
+using sffd::StageTimes;
+using sffd::cuda_impl::CudaEvaluator;
+using sffd::cuda_impl::CudaUpsamplingBaseline;
+
+struct sffd_cuda_evaluator {
+  std::unique_ptr<CudaEvaluator> ev;
+};
+struct sffd_cuda_baseline {
+  std::unique_ptr<CudaUpsamplingBaseline> b;
+};
+
+namespace {
+
+void copy_text(char* dst, size_t size, const char* src) {
+  if (!dst || size == 0) return;
+  std::strncpy(dst, src ? src : "", size - 1);
+  dst[size - 1] = '\0';
+}
+
+void set_error(sffd_cuda_error* err, int code, const char* msg) {
+  if (!err) return;
+  err->code = code;
+  copy_text(err->message, sizeof(err->message), msg);
+}
+
+// Runs fn; any exception becomes the code of the exception the caller's wrapper raises.
+template <class Fn>
+int guarded(sffd_cuda_error* err, Fn&& fn) noexcept {
+  try {
+    fn();
+    set_error(err, SFFD_CUDA_OK, "");
+    return SFFD_CUDA_OK;
+  } catch (const sffd::CudaOutOfMemory& e) {
+    set_error(err, SFFD_CUDA_OUT_OF_MEMORY, e.what());
+  } catch (const std::bad_alloc&) {
+    set_error(err, SFFD_CUDA_OUT_OF_MEMORY, "out of host memory in the CUDA backend");
+  } catch (const std::invalid_argument& e) {
+    set_error(err, SFFD_CUDA_INVALID_ARGUMENT, e.what());
+  } catch (const std::logic_error& e) {
+    set_error(err, SFFD_CUDA_INTERNAL, e.what());
+  } catch (const std::exception& e) {
+    set_error(err, SFFD_CUDA_ERROR, e.what());
+  } catch (...) {
+    set_error(err, SFFD_CUDA_ERROR, "unknown exception in the CUDA backend");
+  }
+  return err ? err->code : SFFD_CUDA_ERROR;
+}
+
+void put_times(const StageTimes& t, sffd_cuda_times* out) {
+  if (!out) return;
+  out->count = 0;
+  for (const auto& kv : t) {
+    if (out->count >= SFFD_CUDA_MAX_STAGES) break;
+    copy_text(out->name[out->count], sizeof(out->name[0]), kv.first.c_str());
+    out->ms[out->count] = kv.second;
+    ++out->count;
+  }
+}
+
+// The caller owns the plan and keeps it alive as long as the evaluator: a non-owning pointer.
+std::shared_ptr<const Plan> borrowed(const void* plan) {
+  if (!plan) throw std::invalid_argument("plan: null");
+  return std::shared_ptr<const Plan>(static_cast<const Plan*>(plan), [](const Plan*) {});
+}
+
+uint64_t plan_tail() {
+  static const Plan p;
+  return (uint64_t)(reinterpret_cast<const char*>(&p.build_ms) - reinterpret_cast<const char*>(&p));
+}
+
+int api_status(char* message, size_t size) {
+  try {
+    auto st = sffd::cuda_impl::cuda_status();
+    copy_text(message, size, st.second.c_str());
+    return st.first ? 1 : 0;
+  } catch (const std::exception& e) {
+    copy_text(message, size, (std::string("CUDA status check failed: ") + e.what()).c_str());
+  } catch (...) {
+    copy_text(message, size, "CUDA status check failed");
+  }
+  return 0;
+}
+
+int evaluator_create(const void* plan, const char* path, int64_t limit, sffd_cuda_evaluator** out,
+                     sffd_cuda_error* err) {
+  return guarded(err, [&] {
+    if (!out) throw std::invalid_argument("evaluator_create: null output");
+    *out = nullptr;
+    auto h = std::make_unique<sffd_cuda_evaluator>();
+    h->ev = std::make_unique<CudaEvaluator>(borrowed(plan), path ? path : "", limit);
+    *out = h.release();
+  });
+}
+
+void evaluator_destroy(sffd_cuda_evaluator* ev) {
+  try {
+    delete ev;
+  } catch (...) {
+  }
+}
+
+int evaluate(sffd_cuda_evaluator* ev, const float* D, float* positions, float* corner_normals, sffd_cuda_times* times,
+             sffd_cuda_error* err) {
+  return guarded(err, [&] { put_times(ev->ev->evaluate(D, positions, corner_normals), times); });
+}
+
+int evaluate_device(sffd_cuda_evaluator* ev, const float* D, sffd_cuda_times* times, sffd_cuda_error* err) {
+  return guarded(err, [&] { put_times(ev->ev->evaluate_device(D), times); });
+}
+
+int benchmark(sffd_cuda_evaluator* ev, const float* D, int iters, sffd_cuda_times* times, sffd_cuda_error* err) {
+  return guarded(err, [&] { put_times(ev->ev->benchmark(D, iters), times); });
+}
+
+const char* path(const sffd_cuda_evaluator* ev) {
+  try {
+    return ev->ev->path() == "cublas" ? "cublas" : "fused";
+  } catch (...) {
+    return "fused";
+  }
+}
+
+const char* fused_kernel(const sffd_cuda_evaluator* ev) {
+  try {
+    const std::string k = ev->ev->fused_kernel();
+    if (k == "inline (boxes)") return "inline (boxes)";
+    if (k == "inline (weights)") return "inline (weights)";
+    return "staged";
+  } catch (...) {
+    return "staged";
+  }
+}
+
+int set_path(sffd_cuda_evaluator* ev, const char* p, sffd_cuda_error* err) {
+  return guarded(err, [&] { ev->ev->set_path(p ? p : ""); });
+}
+
+uint64_t output_bytes(const sffd_cuda_evaluator* ev) { return ev->ev->output_bytes(); }
+uint64_t device_bytes(const sffd_cuda_evaluator* ev) { return ev->ev->device_bytes(); }
+
+void limits(const sffd_cuda_evaluator* ev, sffd_cuda_limits* out) {
+  if (out) *out = ev->ev->limits();
+}
+
+int poison(sffd_cuda_evaluator* ev, sffd_cuda_error* err) {
+  return guarded(err, [&] { ev->ev->poison(); });
+}
+
+int download_compact(sffd_cuda_evaluator* ev, float* positions, float* normals, sffd_cuda_error* err) {
+  return guarded(err, [&] { ev->ev->download_compact(positions, normals); });
+}
+
+int baseline_create(const void* plan, const float* points, const float* normals, const uint32_t* pieces, int64_t count,
+                    sffd_cuda_baseline** out, sffd_cuda_error* err) {
+  return guarded(err, [&] {
+    if (!out) throw std::invalid_argument("baseline_create: null output");
+    if (count < 0) throw std::invalid_argument("baseline: negative point count");
+    *out = nullptr;
+    const size_t M = (size_t)count;
+    std::vector<float> pts(points, points + 3 * M), nrm(normals, normals + 3 * M);
+    std::vector<uint32_t> pcs(pieces, pieces + M);
+    auto h = std::make_unique<sffd_cuda_baseline>();
+    h->b = std::make_unique<CudaUpsamplingBaseline>(borrowed(plan), pts, nrm, pcs);
+    *out = h.release();
+  });
+}
+
+void baseline_destroy(sffd_cuda_baseline* b) {
+  try {
+    delete b;
+  } catch (...) {
+  }
+}
+
+uint64_t baseline_control_values(const sffd_cuda_baseline* b) { return b->b->control_values(); }
+
+int baseline_evaluate(sffd_cuda_baseline* b, const float* D, float* positions, float* normals, sffd_cuda_error* err) {
+  return guarded(err, [&] { b->b->evaluate(D, positions, normals); });
+}
+
+int baseline_benchmark(sffd_cuda_baseline* b, const float* D, int iters, sffd_cuda_times* times, sffd_cuda_error* err) {
+  return guarded(err, [&] { put_times(b->b->benchmark(D, iters), times); });
+}
+
+sffd_cuda_api make_api() noexcept {
+  sffd_cuda_api a{};
+  a.abi_version = SFFD_CUDA_ABI_VERSION;
+  a.api_size = sizeof(sffd_cuda_api);
+  a.plan_size = sizeof(Plan);
+  try {
+    a.plan_tail = plan_tail();
+    a.build_info = sffd::cuda_impl::build_info();
+  } catch (...) {
+    a.plan_tail = 0;
+    a.build_info = "";
+  }
+  a.status = api_status;
+  a.evaluator_create = evaluator_create;
+  a.evaluator_destroy = evaluator_destroy;
+  a.evaluate = evaluate;
+  a.evaluate_device = evaluate_device;
+  a.benchmark = benchmark;
+  a.path = path;
+  a.fused_kernel = fused_kernel;
+  a.set_path = set_path;
+  a.output_bytes = output_bytes;
+  a.device_bytes = device_bytes;
+  a.limits = limits;
+  a.poison = poison;
+  a.download_compact = download_compact;
+  a.baseline_create = baseline_create;
+  a.baseline_destroy = baseline_destroy;
+  a.baseline_control_values = baseline_control_values;
+  a.baseline_evaluate = baseline_evaluate;
+  a.baseline_benchmark = baseline_benchmark;
+  return a;
+}
+
+}  // namespace
+
+extern "C" __attribute__((visibility("default"))) const sffd_cuda_api* sffd_cuda_api_v1(void) {
+  static const sffd_cuda_api api = make_api();
+  return &api;
+}

@@ -1,0 +1,27 @@
+// The CUDA backend's exceptions: CudaError (RuntimeError in Python) and CudaOutOfMemory
+// (MemoryError). Thrown inside libsmoothffd_cuda.so (caught at its C boundary, cuda_api.cpp)
+// and again by _core's wrapper (cuda_loader.cpp) from the boundary's error codes.
+#pragma once
+
+#include <new>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace sffd {
+
+class CudaError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class CudaOutOfMemory : public std::bad_alloc {
+ public:
+  explicit CudaOutOfMemory(std::string msg) : msg_(std::move(msg)) {}
+  const char* what() const noexcept override { return msg_.c_str(); }
+
+ private:
+  std::string msg_;
+};
+
+}  // namespace sffd

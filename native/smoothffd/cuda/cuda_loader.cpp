@@ -1,0 +1,224 @@
+// _core's side of the CUDA boundary (cuda_loader.hpp, cuda_api.h): finds, loads and checks
+// libsmoothffd_cuda.so, and turns its error codes back into exceptions. Compiled into the
+// module with the host compiler; needs no CUDA header or library.
+#include "smoothffd/cuda/cuda_loader.hpp"
+
+#include <dlfcn.h>
+#include <limits.h>
+#include <stdlib.h>
+#include <sys/stat.h>
+
+#include <stdexcept>
+
+namespace sffd {
+
+namespace {
+
+// Directory of the file that holds this function (the module), absolute.
+std::string own_directory() {
+  Dl_info info{};
+  if (!dladdr(reinterpret_cast<void*>(&own_directory), &info) || !info.dli_fname) return "";
+  std::string file = info.dli_fname;
+  char buf[PATH_MAX];
+  if (realpath(file.c_str(), buf)) file = buf;
+  const size_t slash = file.rfind('/');
+  return slash == std::string::npos ? "." : file.substr(0, slash);
+}
+
+uint64_t plan_tail() {
+  static const Plan p;
+  return (uint64_t)(reinterpret_cast<const char*>(&p.build_ms) - reinterpret_cast<const char*>(&p));
+}
+
+struct Loaded {
+  const sffd_cuda_api* api = nullptr;
+  std::string why;  // when api is null
+};
+
+Loaded load() {
+  Loaded l;
+  const std::string path = cuda_library_path();
+  if (path.empty()) {
+    l.why = "the CUDA backend could not be looked for: dladdr found no file for the smoothffd module";
+    return l;
+  }
+  struct stat st;
+  if (stat(path.c_str(), &st) != 0) {
+    l.why = "the CUDA backend is not installed: " + path +
+            " does not exist (this smoothffd was built without CUDA, or the library was not shipped)";
+    return l;
+  }
+  dlerror();
+  void* h = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+  if (!h) {
+    const char* e = dlerror();
+    l.why = "the CUDA backend " + path + " failed to load: " + (e ? e : "unknown dlopen error");
+    return l;
+  }
+  // Kept loaded for the life of the process (it holds the CUDA runtime's state).
+  auto entry = reinterpret_cast<sffd_cuda_entry_fn>(dlsym(h, SFFD_CUDA_ENTRY));
+  if (!entry) {
+    l.why = path + " is not a smoothffd CUDA backend: it has no " SFFD_CUDA_ENTRY;
+    return l;
+  }
+  const sffd_cuda_api* api = entry();
+  if (!api || api->abi_version != SFFD_CUDA_ABI_VERSION || api->api_size < sizeof(sffd_cuda_api) ||
+      api->plan_size != sizeof(Plan) || api->plan_tail != plan_tail()) {
+    l.why = path + " was built from other smoothffd sources: " +
+            (api ? "ABI version " + std::to_string(api->abi_version) + ", Plan of " + std::to_string(api->plan_size) +
+                       " bytes"
+                 : std::string("no API table")) +
+            "; this module expects ABI version " + std::to_string(SFFD_CUDA_ABI_VERSION) + ", Plan of " +
+            std::to_string(sizeof(Plan)) + " bytes (rebuild both together)";
+    return l;
+  }
+  l.api = api;
+  return l;
+}
+
+const Loaded& loaded() {
+  static const Loaded l = load();
+  return l;
+}
+
+const sffd_cuda_api* api_or_throw() {
+  const Loaded& l = loaded();
+  if (!l.api) throw CudaError("no usable CUDA backend: " + l.why);
+  return l.api;
+}
+
+void check(int rc, const sffd_cuda_error& err) {
+  if (rc == SFFD_CUDA_OK) return;
+  std::string msg = err.message;
+  switch (rc) {
+    case SFFD_CUDA_OUT_OF_MEMORY: throw CudaOutOfMemory(msg);
+    case SFFD_CUDA_INVALID_ARGUMENT: throw std::invalid_argument(msg);
+    case SFFD_CUDA_INTERNAL: throw std::logic_error(msg);
+    default: throw CudaError(msg.empty() ? "CUDA backend error" : msg);
+  }
+}
+
+StageTimes to_times(const sffd_cuda_times& t) {
+  StageTimes out;
+  for (int i = 0; i < t.count && i < SFFD_CUDA_MAX_STAGES; ++i) out.emplace_back(t.name[i], t.ms[i]);
+  return out;
+}
+
+}  // namespace
+
+std::string cuda_library_path() {
+  static const std::string path = [] {
+    const std::string dir = own_directory();
+    return dir.empty() ? std::string() : dir + "/" + SFFD_CUDA_LIBRARY;
+  }();
+  return path;
+}
+
+bool cuda_library_present() {
+  struct stat st;
+  const std::string p = cuda_library_path();
+  return !p.empty() && stat(p.c_str(), &st) == 0;
+}
+
+std::pair<bool, std::string> cuda_status() {
+  const Loaded& l = loaded();
+  if (!l.api) return {false, l.why};
+  char msg[2048] = {0};
+  const int ok = l.api->status(msg, sizeof(msg));
+  return {ok != 0, std::string(msg)};
+}
+
+// ---------------------------------------------------------------- CudaEvaluator
+
+CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string& path, int64_t shared_memory_limit)
+    : plan_(std::move(plan)), api_(api_or_throw()) {
+  sffd_cuda_error err{};
+  check(api_->evaluator_create(plan_.get(), path.c_str(), shared_memory_limit, &handle_, &err), err);
+}
+
+CudaEvaluator::~CudaEvaluator() {
+  if (handle_) api_->evaluator_destroy(handle_);
+}
+
+StageTimes CudaEvaluator::evaluate(const float* D, float* positions, float* corner_normals) {
+  sffd_cuda_error err{};
+  sffd_cuda_times t{};
+  check(api_->evaluate(handle_, D, positions, corner_normals, &t, &err), err);
+  return to_times(t);
+}
+
+StageTimes CudaEvaluator::evaluate_device(const float* D) {
+  sffd_cuda_error err{};
+  sffd_cuda_times t{};
+  check(api_->evaluate_device(handle_, D, &t, &err), err);
+  return to_times(t);
+}
+
+StageTimes CudaEvaluator::benchmark(const float* D, int iters) {
+  sffd_cuda_error err{};
+  sffd_cuda_times t{};
+  check(api_->benchmark(handle_, D, iters, &t, &err), err);
+  return to_times(t);
+}
+
+std::string CudaEvaluator::path() const { return api_->path(handle_); }
+
+void CudaEvaluator::set_path(const std::string& path) {
+  sffd_cuda_error err{};
+  check(api_->set_path(handle_, path.c_str(), &err), err);
+}
+
+size_t CudaEvaluator::output_bytes() const { return (size_t)api_->output_bytes(handle_); }
+size_t CudaEvaluator::device_bytes() const { return (size_t)api_->device_bytes(handle_); }
+std::string CudaEvaluator::fused_kernel() const { return api_->fused_kernel(handle_); }
+
+sffd_cuda_limits CudaEvaluator::limits() const {
+  sffd_cuda_limits l{};
+  api_->limits(handle_, &l);
+  return l;
+}
+
+void CudaEvaluator::poison() {
+  sffd_cuda_error err{};
+  check(api_->poison(handle_, &err), err);
+}
+
+void CudaEvaluator::download_compact(float* positions, float* normals) {
+  sffd_cuda_error err{};
+  check(api_->download_compact(handle_, positions, normals, &err), err);
+}
+
+// ---------------------------------------------------------------- CudaUpsamplingBaseline
+
+CudaUpsamplingBaseline::CudaUpsamplingBaseline(std::shared_ptr<const Plan> plan, const std::vector<float>& points,
+                                               const std::vector<float>& normals,
+                                               const std::vector<uint32_t>& pieces)
+    : plan_(std::move(plan)), api_(api_or_throw()) {
+  const size_t M = pieces.size();
+  if (points.size() != 3 * M || normals.size() != 3 * M)
+    throw std::invalid_argument("baseline: points, normals (M x 3) and pieces (M) disagree");
+  sffd_cuda_error err{};
+  check(api_->baseline_create(plan_.get(), points.data(), normals.data(), pieces.data(), (int64_t)M, &handle_, &err),
+        err);
+  count_ = (int)M;
+}
+
+CudaUpsamplingBaseline::~CudaUpsamplingBaseline() {
+  if (handle_) api_->baseline_destroy(handle_);
+}
+
+size_t CudaUpsamplingBaseline::control_values() const { return (size_t)api_->baseline_control_values(handle_); }
+
+void CudaUpsamplingBaseline::evaluate(const float* D, float* positions, float* normals) {
+  sffd_cuda_error err{};
+  check(api_->baseline_evaluate(handle_, D, positions, normals, &err), err);
+}
+
+StageTimes CudaUpsamplingBaseline::benchmark(const float* D, int iters) {
+  sffd_cuda_error err{};
+  sffd_cuda_times t{};
+  check(api_->baseline_benchmark(handle_, D, iters, &t, &err), err);
+  return to_times(t);
+}
+
+}  // namespace sffd

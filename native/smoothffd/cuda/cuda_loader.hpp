@@ -1,0 +1,85 @@
+// The CUDA backend as the Python module sees it: the same C++ interface as the evaluator in
+// libsmoothffd_cuda.so (cuda_evaluator.hpp), implemented over that library's C table
+// (cuda_api.h). The library is looked for next to the module's own file and dlopened the first
+// time the backend is asked for (cuda_status(), or creating an evaluator or a baseline), so
+// the module itself needs no CUDA library at all: without the library, the driver or a GPU,
+// everything on the CPU works and cuda_status() says why CUDA does not.
+//
+// Error codes from the library come back as CudaError (RuntimeError in Python),
+// CudaOutOfMemory (MemoryError), std::invalid_argument (ValueError) or std::logic_error.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "smoothffd/cuda/cuda_api.h"
+#include "smoothffd/cuda/cuda_error.hpp"
+#include "smoothffd/eval/evaluator.hpp"
+
+namespace sffd {
+
+// Where the module looks for the library: SFFD_CUDA_LIBRARY in the directory of the file that
+// holds this code (dladdr), made absolute once.
+std::string cuda_library_path();
+// Whether that file exists (the backend was built or shipped); loads nothing.
+bool cuda_library_present();
+// (usable, message): the device and runtime, or precisely why CUDA cannot be used here: the
+// library is not there, failed to load (the loader's message), was built from other sources,
+// no NVIDIA driver, driver too old, no device, no kernels for the device's architecture.
+std::pair<bool, std::string> cuda_status();
+
+class CudaEvaluator : public Evaluator {
+ public:
+  // path: "fused", "cublas", or "" (SMOOTHFFD_CUDA_PATH, else fused). shared_memory_limit: 0
+  // (the device's own) or the shared memory a block may opt in to on a smaller device to
+  // emulate (at least 48 KiB; tests of the launch choices).
+  explicit CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string& path = "",
+                         int64_t shared_memory_limit = 0);
+  ~CudaEvaluator() override;
+  CudaEvaluator(const CudaEvaluator&) = delete;
+  CudaEvaluator& operator=(const CudaEvaluator&) = delete;
+  std::string name() const override { return "cuda"; }
+  const Plan& plan() const override { return *plan_; }
+
+  StageTimes evaluate(const float* D, float* positions, float* corner_normals) override;
+  StageTimes evaluate_device(const float* D);
+  std::string path() const;
+  void set_path(const std::string& path);
+  size_t output_bytes() const;
+  size_t device_bytes() const;
+  std::string fused_kernel() const;
+  sffd_cuda_limits limits() const;
+  void poison();
+  void download_compact(float* positions, float* normals);
+  StageTimes benchmark(const float* D, int iters);
+
+ private:
+  std::shared_ptr<const Plan> plan_;
+  const sffd_cuda_api* api_ = nullptr;
+  sffd_cuda_evaluator* handle_ = nullptr;
+};
+
+class CudaUpsamplingBaseline {
+ public:
+  CudaUpsamplingBaseline(std::shared_ptr<const Plan> plan, const std::vector<float>& points,
+                         const std::vector<float>& normals, const std::vector<uint32_t>& pieces);
+  ~CudaUpsamplingBaseline();
+  CudaUpsamplingBaseline(const CudaUpsamplingBaseline&) = delete;
+  CudaUpsamplingBaseline& operator=(const CudaUpsamplingBaseline&) = delete;
+  int points() const { return count_; }
+  size_t output_bytes() const { return 24 * (size_t)count_; }
+  size_t control_values() const;
+  void evaluate(const float* D, float* positions, float* normals);
+  StageTimes benchmark(const float* D, int iters);
+
+ private:
+  std::shared_ptr<const Plan> plan_;
+  int count_ = 0;
+  const sffd_cuda_api* api_ = nullptr;
+  sffd_cuda_baseline* handle_ = nullptr;
+};
+
+}  // namespace sffd

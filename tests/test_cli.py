@@ -207,7 +207,8 @@ def test_deform_bad_inputs_exit_2(core, tmp_path, capsys):
 
 def test_python_dash_m_runs(core, tmp_path):
     out = tmp_path / "bend.obj"
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "python"))
+    import smoothffd  # the subprocess imports the same package as this process
+    env = dict(os.environ, PYTHONPATH=os.path.dirname(os.path.dirname(smoothffd.__file__)))
     r = subprocess.run([sys.executable, "-m", "smoothffd", "deform", str(DATA / "vase.obj"), "--lattice",
                         str(DATA / "vase_bend.json"), "-o", str(out), "--level", "2"], env=env,
                        capture_output=True, text=True, timeout=120)

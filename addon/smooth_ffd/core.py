@@ -1,14 +1,14 @@
-"""Finds and loads the core package `smoothffd` (kept apart so its import errors are reported
-in the status line instead of breaking the add-on's registration)."""
-import os
-import sys
+"""Loads the core package `smoothffd` (kept apart so that its import errors are reported in the
+status line instead of breaking the add-on's registration).
 
-_HERE = os.path.dirname(os.path.abspath(__file__))
-# Order: an explicit override, the copy bundled in the zip, the source tree's python/.
-_CANDIDATES = [p for p in (os.environ.get("SMOOTHFFD_PYTHONPATH"),
-                           os.path.join(_HERE, "_vendor"),
-                           os.path.normpath(os.path.join(_HERE, "..", "..", "python")))
-               if p and os.path.isdir(os.path.join(p, "smoothffd"))]
+Where it comes from, without any sys.path edit:
+- Blender 4.2+ extension: the wheels listed in blender_manifest.toml, which Blender installs
+  into the extension's site-packages (`import smoothffd`);
+- legacy add-on zip (Blender 3.4-4.1): the package vendored as the sub-package
+  `smooth_ffd._vendor.smoothffd` (scripts/package.sh);
+- otherwise an installed `smoothffd` (pip), e.g. a development setup.
+"""
+import sys
 
 _module = None
 
@@ -17,15 +17,20 @@ def smoothffd():
     """The imported core; raises ImportError with a message saying what to do."""
     global _module
     if _module is None:
-        if _CANDIDATES and _CANDIDATES[0] not in sys.path:
-            sys.path.insert(0, _CANDIDATES[0])
+        errors = []
         try:
-            import smoothffd as m
+            from ._vendor import smoothffd as m
         except ImportError as e:
-            raise ImportError(
-                f"cannot import the smoothffd core ({e}); it must be built for this Blender's "
-                f"Python {sys.version_info[0]}.{sys.version_info[1]} (searched: "
-                f"{', '.join(_CANDIDATES) or 'nothing found'})") from e
+            errors.append(f"bundled copy: {e}")
+            try:
+                import smoothffd as m
+            except ImportError as e2:
+                errors.append(f"installed package: {e2}")
+                raise ImportError(
+                    "cannot import the smoothffd core (" + "; ".join(errors) + "). Install the "
+                    f"Smooth FFD package made for this Blender (Python "
+                    f"{sys.version_info[0]}.{sys.version_info[1]}, Linux x86-64): see "
+                    "docs/packaging.md") from e2
         _module = m
     return _module
 

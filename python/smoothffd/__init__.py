@@ -18,8 +18,10 @@ try:
 except ImportError as exc:  # the pure-Python submodules still work
     _CORE_ERROR = (
         "smoothffd: the native module smoothffd._core is missing or does not load "
-        f"({exc}). Build it with `bash scripts/build.sh` (it must match this Python, "
-        f"{sys.version_info.major}.{sys.version_info.minor}).")
+        f"({exc}). Install a wheel made for this Python "
+        f"({sys.version_info.major}.{sys.version_info.minor}): `pip install smoothffd` or a "
+        "wheel from scripts/package.sh's dist/; in a source tree, `bash scripts/build.sh` "
+        "builds it in place.")
 
     def __getattr__(name):
         if name in __all__:

@@ -179,7 +179,7 @@ def _ensure_parent(path):
 
 
 def cmd_deform(args, progress):
-    import smoothffd  # the core: only this command needs it
+    from . import Deformer  # the core (its ImportError says why it is missing)
 
     with progress.stage("read") as note:
         mesh = objio.read_obj_mesh(args.input)
@@ -188,7 +188,7 @@ def cmd_deform(args, progress):
         note["detail"] = (f"{args.input}: {mesh.vertex_count:,} vertices, "
                           f"{mesh.face_count:,} faces; {type(lattice).__name__} {shape}")
     with progress.stage("plan") as note:
-        deformer = smoothffd.Deformer(mesh, lattice, level=args.level, device=args.device,
+        deformer = Deformer(mesh, lattice, level=args.level, device=args.device,
                                       threads=args.threads)
         note["detail"] = f"level {args.level}, device {deformer.device}"
     with progress.stage("deform") as note:

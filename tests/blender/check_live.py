@@ -9,8 +9,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
-import smooth_ffd  # noqa: E402
-from smooth_ffd import compat, engine, latticeio, meshio  # noqa: E402
+from sffd_testlib import smooth_ffd, compat, engine, latticeio, meshio  # noqa: E402
 
 TOL = 1e-5
 

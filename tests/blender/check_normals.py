@@ -8,8 +8,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
-import smooth_ffd  # noqa: E402
-from smooth_ffd import compat, engine, latticeio, logic, meshio  # noqa: E402
+from sffd_testlib import smooth_ffd, compat, engine, latticeio, logic, meshio  # noqa: E402
 
 ANGLE_TOL = 2e-3   # radians; 3.4-4.4 store custom normals as 16-bit angles in a normal space
 SPLIT_ANGLE = 1e-2
@@ -63,7 +62,7 @@ def run_mesh(kind, level):
     # Expected: cof(J) n at each original vertex, J of the whole map in object space.
     rest, pts, interp, _shape, _key = latticeio.read_lattice(lat, None)
     l2o = logic.lattice_to_object(np.array(obj.matrix_world), np.array(lat.matrix_world))
-    sf = smooth_ffd.core.smoothffd()
+    sf = T.core_module()
     lattice = sf.BlenderLattice(rest, pts, interpolation=interp, lattice_to_object=l2o)
     _pos, jac = lattice.evaluate(T.positions(src))
     expected = unit(np.einsum("cij,cj->ci", cofactor(jac)[in_verts], in_normals))

@@ -55,8 +55,8 @@ def build(case, seed):
 
 def run_case(i, case):
     obj, lat, ref, strength, vg_name, invert = build(case, seed=i)
-    import smooth_ffd
-    from smooth_ffd import meshio
+    smooth_ffd = T.smooth_ffd
+    meshio = T.meshio
     mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=1, render_level=1, strength=strength,
                                     vertex_group=vg_name, invert_vertex_group=invert)
     T.update()
@@ -66,7 +66,7 @@ def run_case(i, case):
     moved = np.abs(expect - src).max()
     label = f"case{i} {case[0]} {case[1]} {case[2]} s={case[5]} vg={case[6]}"
     for level in LEVELS:
-        from smooth_ffd import compat
+        compat = T.compat
         compat.set_modifier_input(mod, "Viewport Level", level)
         obj.update_tag()
         T.update()

@@ -12,8 +12,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
-import smooth_ffd  # noqa: E402
-from smooth_ffd import engine  # noqa: E402
+from sffd_testlib import smooth_ffd, engine  # noqa: E402
 
 VIEWPORT, RENDER = 1, 3
 RES = 48

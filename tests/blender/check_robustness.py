@@ -15,8 +15,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
-import smooth_ffd  # noqa: E402
-from smooth_ffd import engine, handlers  # noqa: E402
+from sffd_testlib import smooth_ffd, engine, handlers  # noqa: E402
 
 TOL = 1e-5
 VIEWPORT, RENDER = 1, 2
@@ -354,13 +353,13 @@ def test_render_during_updates():
     # 4. A bad setting made during the render: an error status, the source shown, and
     #    recovery once fixed.
     def break_it(scene, *_):
-        from smooth_ffd import compat
+        compat = T.compat
         compat.set_modifier_input(bpy.data.objects["src"].modifiers[0], "Backend", "gpu9")
     rec = render_with(pre=break_it)
     T.update()
     st = smooth_ffd.status(mod)
     T.check("bad setting during render: error status", st.startswith("Error"), st)
-    from smooth_ffd import compat
+    compat = T.compat
     compat.set_modifier_input(mod, "Backend", "auto")
     obj.update_tag()
     T.update()

@@ -1,5 +1,6 @@
 """Helpers for the add-on tests. Runs inside Blender (`blender -b --python`) or in a Python
 that has the `bpy` module; never imported by pytest itself."""
+import importlib
 import math
 import os
 import sys
@@ -10,13 +11,52 @@ import bpy
 import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-sys.path.insert(0, os.path.join(ROOT, "addon"))
+# A zip to install and test instead of the source tree's addon/ (tests/test_blender.py sets it,
+# with BLENDER_USER_* naming a private, temporary user profile).
+ADDON_ZIP = os.environ.get("SFFD_TEST_ADDON_ZIP") or None
+INSTALLED = ADDON_ZIP is not None
 
-import smooth_ffd  # noqa: E402
-from smooth_ffd import compat, engine, handlers, nodegroup  # noqa: E402
 
-_registered = False
+def _install_addon(zip_path):
+    """Installs and enables the zip the way users do; returns the installed module."""
+    if bpy.app.version >= (4, 2):
+        r = bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default",
+                                                     enable_on_install=True)
+        name = "bl_ext.user_default.smooth_ffd"
+    else:
+        bpy.ops.preferences.addon_install(filepath=zip_path, overwrite=True)
+        r = bpy.ops.preferences.addon_enable(module="smooth_ffd")
+        name = "smooth_ffd"
+    if r != {'FINISHED'} or name not in sys.modules:
+        raise SystemExit(f"FAIL installing {zip_path}: {r}, {name} not loaded")
+    return sys.modules[name]
+
+
+def _load_addon():
+    if INSTALLED:
+        return _install_addon(os.path.abspath(ADDON_ZIP))
+    sys.path.insert(0, os.path.join(ROOT, "addon"))
+    return importlib.import_module("smooth_ffd")
+
+
+# The add-on and its modules: check scripts import them from here, never by name, so that
+# they test whichever copy this is (installed: bl_ext.user_default.smooth_ffd on 4.2+).
+smooth_ffd = _load_addon()
+api, compat, core, engine, handlers, latticeio, logic, meshio, nodegroup = (
+    importlib.import_module(f"{smooth_ffd.__name__}.{m}")
+    for m in ("api", "compat", "core", "engine", "handlers", "latticeio", "logic", "meshio",
+              "nodegroup"))
+
+_registered = INSTALLED   # enabling an installed add-on registers it
 _results = []
+
+
+def core_module():
+    """The smoothffd package the add-on runs."""
+    getter = getattr(core, "smoothffd", None)
+    if getter is not None:
+        return getter()
+    return importlib.import_module("smoothffd")
 
 
 def setup():
@@ -26,8 +66,14 @@ def setup():
         _registered = True
     print(f"blender {bpy.app.version_string}, python {sys.version.split()[0]}, "
           f"numpy {np.__version__}")
-    sf = smooth_ffd.core.smoothffd()
+    print("add-on:", smooth_ffd.__file__)
+    sf = core_module()
     print("core:", getattr(sf, "__file__", sf))
+    if INSTALLED:
+        here = os.path.realpath(ROOT) + os.sep
+        used = [os.path.realpath(f) for f in (smooth_ffd.__file__, getattr(sf, "__file__", ""))]
+        check("installed add-on and core used, not the source tree's",
+              not any(f.startswith(here) for f in used), str(used))
 
 
 def args():

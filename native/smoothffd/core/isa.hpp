@@ -12,9 +12,11 @@
 // inline namespace sffd::isa_v3, a name of its own; in the baseline build and in CUDA code
 // the macros are empty (names and mangling unchanged). Plain data types (V3, Plan, PlanView,
 // FrameView, SampleBatches, FitColumns, GridBasisLanes) stay outside, shared by both copies.
-// std:: code must not be compiled into the v3 copy (it would be a COMDAT shared with the
-// baseline): the v3 functions touch raw memory only. scripts/check_isa.py checks the built
-// module: no function outside isa_v3 uses an instruction beyond x86-64-v2.
+// No std:: (or other shared) function may be emitted out of line in the v3 copy: it would be a
+// COMDAT shared with the baseline. So the threads stay in baseline code (CpuEvaluator) and the
+// v3 functions read plain views, std::vector only through its trivially inlined accessors.
+// scripts/check_isa.py checks the objects and the module: no function outside isa_v3 uses an
+// instruction beyond x86-64-v2.
 #pragma once
 
 #if defined(SFFD_ISA_V3)

@@ -50,16 +50,20 @@ say "cp311 wheel (CUDA: $CUDA)"
     -C build-dir=build/skbuild/cp311 -C cmake.define.SMOOTHFFD_CUDA=$([ $CUDA = 1 ] && echo ON || echo OFF)
 repair "$WORK"/raw/smoothffd-*-cp311-*.whl
 CUDA_LIB=""
-if [ "$CUDA" = 1 ]; then
-    CUDA_LIB="$(find build/skbuild/cp311 -name 'libsmoothffd_cuda.so' -print -quit)"
-    [ -n "$CUDA_LIB" ] || { echo "package: the cp311 build made no libsmoothffd_cuda.so" >&2; exit 1; }
+if [ "$CUDA" = 1 ]; then   # the very file the cp311 wheel ships (stripped), for the cp313 one
+    CUDA_LIB="$WORK/libsmoothffd_cuda.so"
+    "$TOOLS/bin/python" - "$DIST"/smoothffd-*-cp311-*.whl "$CUDA_LIB" <<'PY'
+import sys, zipfile
+with zipfile.ZipFile(sys.argv[1]) as z, open(sys.argv[2], "wb") as f:
+    f.write(z.read("smoothffd/libsmoothffd_cuda.so"))
+PY
 fi
 
 # --- CPython 3.13, in the trixie chroot with this machine's toolchain; the same CUDA library
 say "cp313 wheel"
 [ -x "$CACHE/trixie/usr/bin/python3.13" ] || bash scripts/setup_blender.sh
 extra=()
-[ -n "$CUDA_LIB" ] && extra=(-C "cmake.define.SMOOTHFFD_CUDA_PREBUILT=$ROOT/$CUDA_LIB")
+[ -n "$CUDA_LIB" ] && extra=(-C "cmake.define.SMOOTHFFD_CUDA_PREBUILT=$CUDA_LIB")
 bash scripts/py313.sh sh -c '[ -x /opt/venv-build/bin/pip ] || python3.13 -m venv /opt/venv-build'
 bash scripts/py313.sh --host-toolchain /opt/venv-build/bin/pip wheel . --no-deps -q \
     -w "$WORK/raw" -C build-dir=build/skbuild/cp313 -C cmake.define.SMOOTHFFD_CUDA=OFF "${extra[@]}"

@@ -210,7 +210,7 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
                 st.deformer = core.make_deformer(source, lattice, level, backend)
             st.plan_key = plan_key
         # out=: overwrite the previous update's arrays in place (no fresh pages each edit).
-        # Without exact normals (3.4-4.0 viewport: Blender shades the dense mesh from its own
+        # Without exact normals (3.4-4.4 viewport: Blender shades the dense mesh from its own
         # geometry, _write_result) the core computes positions only: the same positions in
         # well under half the time (res.corner_normals is None then).
         res = st.result = st.deformer.deform(lattice, out=st.result, normals=exact)
@@ -246,8 +246,8 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
 
 # How many results were computed, and where (tests and benchmarks read these).
 counters = {"computed": 0, "early": 0, "post": 0, "early_errors": 0}
-# How the core was asked: with normals (exact normals: render, Apply, Exact Normals, 4.1+) or
-# positions only (viewport on 3.4-4.0). Apart from `counters`, whose exact contents tests compare.
+# How the core was asked: with normals (exact normals: render, Apply, Exact Normals, 4.5+) or
+# positions only (viewport on 3.4-4.4). Apart from `counters`, whose exact contents tests compare.
 deform_calls = {"normals": 0, "positions_only": 0}
 
 
@@ -255,8 +255,8 @@ def _level_backend_exact(settings, render):
     level = logic.parse_level(settings.render_level if render else settings.viewport_level,
                               "render level" if render else "viewport level")
     backend = logic.parse_backend(settings.backend)
-    # Exact custom normals on 3.4-4.0 only when asked for (slow); 4.1+ always exact.
-    exact = render or settings.exact or compat.HAS_CORNER_NORMALS
+    # Exact custom normals up to 4.4 only when asked for (slow); 4.5+ always exact.
+    exact = render or settings.exact or compat.CHEAP_EXACT_NORMALS
     return level, backend, exact
 
 
@@ -395,7 +395,7 @@ def _write_result(obj, ro, res, source, topology_token, exact, st):
     mode = "exact" if exact else "fast"
     same = (mesh.get(TOPOLOGY_KEY) == topology_token and len(mesh.vertices) == len(res.positions)
             and len(mesh.polygons) == len(res.triangles))
-    # Going back from exact to fast on 3.4-4.0 needs the custom-normal layer gone: rebuild.
+    # Going back from exact to fast on 3.4-4.4 needs the custom-normal layer gone: rebuild.
     rebuild = not same or (mesh.get(NORMALS_KEY) == "exact" and mode == "fast")
     if rebuild:
         meshio.write_topology(mesh, res, source, _materials(obj))
@@ -418,7 +418,7 @@ def _write_result(obj, ro, res, source, topology_token, exact, st):
             st.vertex_corner = (st.plan_key, meshio.vertex_corners(res))
         path = meshio.write_normals(mesh, res, st.vertex_corner[1])
     else:
-        path = "from geometry"   # 3.4-4.0 viewport: Blender's own normals of the dense mesh
+        path = "from geometry"   # 3.4-4.4 viewport: Blender's own normals of the dense mesh
     mesh[NORMALS_KEY] = mode
     t2 = time.perf_counter()
     mesh.update()

@@ -23,7 +23,7 @@ INPUTS = (
     ("Vertex Group", 'NodeSocketString', "", None, None, "Vertex group weighting the deformation"),
     ("Invert Vertex Group", 'NodeSocketBool', False, None, None, "Use 1 - weight"),
     ("Exact Normals", 'NodeSocketBool', False, None, None,
-     "Blender 3.4-4.0: write exact custom normals in the viewport too (slow on big meshes)"),
+     "Blender 3.4-4.4: write exact custom normals in the viewport too (slow on big meshes)"),
     ("Status", 'NodeSocketString', "", None, None, "Backend used, last update time, or the error"),
     # Internal inputs written by the add-on, hidden from the panel where Blender allows it.
     ("Result Object", 'NodeSocketObject', None, None, None, "Internal: the hidden result mesh"),

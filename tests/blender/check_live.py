@@ -199,9 +199,9 @@ def test_update_path():
 
 
 def test_positions_only_path():
-    """Viewport without exact normals (3.4-4.0: Blender shades the dense mesh from its
+    """Viewport without exact normals (3.4-4.4: Blender shades the dense mesh from its
     geometry) asks the core for positions only; exact normals (Exact Normals, render and
-    Apply, and 4.1+ always) ask for normals. Parity holds either way."""
+    Apply, and 4.5+ always) ask for normals. Parity holds either way."""
     obj, lat, ref, mod = scene("cube")
     st = engine._state(obj, mod)
     ro = engine.result_object(obj, mod, create=False)
@@ -224,20 +224,20 @@ def test_positions_only_path():
             T.update()
         return fn
 
-    viewport = {"normals": 1, "positions_only": 0} if compat.HAS_CORNER_NORMALS else \
+    viewport = {"normals": 1, "positions_only": 0} if compat.CHEAP_EXACT_NORMALS else \
         {"normals": 0, "positions_only": 1}
-    where = "4.1+ viewport (exact)" if compat.HAS_CORNER_NORMALS else "3.4-4.0 viewport"
+    where = "4.5+ viewport (exact)" if compat.CHEAP_EXACT_NORMALS else "3.4-4.4 viewport"
     n = calls(move())
     parity(f"{where}: parity", obj, lat, ref, mod)
-    T.check(f"{where}: {'normals' if compat.HAS_CORNER_NORMALS else 'positions only'}",
+    T.check(f"{where}: {'normals' if compat.CHEAP_EXACT_NORMALS else 'positions only'}",
             n == viewport, str(n))
-    T.check(f"{where}: result normals {'kept' if compat.HAS_CORNER_NORMALS else 'None'}",
-            (st.result.corner_normals is not None) == compat.HAS_CORNER_NORMALS)
-    # 4.1+: exact already, the setting changes nothing (nothing recomputed).
+    T.check(f"{where}: result normals {'kept' if compat.CHEAP_EXACT_NORMALS else 'None'}",
+            (st.result.corner_normals is not None) == compat.CHEAP_EXACT_NORMALS)
+    # 4.5+: exact already, the setting changes nothing (nothing recomputed).
     none = {"normals": 0, "positions_only": 0}
     n = calls(exact_normals(True))
     parity("Exact Normals on: parity", obj, lat, ref, mod)
-    T.check("Exact Normals on: normals", n == (none if compat.HAS_CORNER_NORMALS else
+    T.check("Exact Normals on: normals", n == (none if compat.CHEAP_EXACT_NORMALS else
                                                {"normals": 1, "positions_only": 0}), str(n))
     T.check("Exact Normals on: custom normals written", ro.data.has_custom_normals,
             smooth_ffd.status(mod))
@@ -248,7 +248,7 @@ def test_positions_only_path():
     n = calls(exact_normals(False))
     parity("Exact Normals off: parity", obj, lat, ref, mod)
     T.check("Exact Normals off: back to the viewport path",
-            n == (none if compat.HAS_CORNER_NORMALS else viewport), str(n))
+            n == (none if compat.CHEAP_EXACT_NORMALS else viewport), str(n))
     # Render (what the render handler and Apply call): normals, in every version.
     depsgraph = bpy.context.evaluated_depsgraph_get()
     n = calls(lambda: engine.update_modifier(obj, mod, depsgraph, render=True, force=True))

@@ -21,10 +21,12 @@ SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
 export DEBIAN_FRONTEND=noninteractive
 
 # Exact pins (newest of each LTS line on PyPI when this was written; `pip index versions bpy`
-# from a Python 3.11 lists them). numpy: bpy 4.2-5.0 declare numpy<2 (their METADATA says
-# "numpy<2.0,>=1.26" or similar); 5.1's declares what it needs and pip resolves it.
+# from a Python 3.11 lists them). numpy: bpy 4.5, 5.0 and 5.1 declare "numpy<2.0,>=1.26" in
+# their METADATA, 4.2 just "numpy" (it was built with 1.x): numpy<2 everywhere. numpy 1.26 has
+# no cp313 wheel, so for 5.1 pip builds it from source once (minutes; the chroot's pip cache
+# keeps the wheel).
 declare -A BPY_VERSION=([bpy-4.2]=4.2.23 [bpy-4.5]=4.5.15 [bpy-5.0]=5.0.1 [bpy-5.1]=5.1.0)
-declare -A NUMPY_SPEC=([bpy-4.2]='numpy<2' [bpy-4.5]='numpy<2' [bpy-5.0]='numpy<2' [bpy-5.1]='numpy')
+declare -A NUMPY_SPEC=([bpy-4.2]='numpy<2' [bpy-4.5]='numpy<2' [bpy-5.0]='numpy<2' [bpy-5.1]='numpy<2')
 ALL="blender-3.4 bpy-4.2 bpy-4.5 bpy-5.0 bpy-5.1"
 ONLY="$ALL"
 if [ "${1:-}" = "--only" ]; then ONLY="${2//,/ }"; fi
@@ -60,8 +62,7 @@ if ! "$PY311" -c 'import sys, venv; sys.exit(sys.version_info[:2] != (3, 11))' 2
 fi
 setup_venv() {   # setup_venv NAME
     local venv="$CACHE/venv-$1" ver="${BPY_VERSION[$1]}"
-    rm -rf "$venv"
-    "$PY311" -m venv "$venv"
+    "$PY311" -m venv "$venv"   # keeps what an earlier, interrupted try installed
     "$venv/bin/python" -m pip install -q --disable-pip-version-check "bpy==$ver" "${NUMPY_SPEC[$1]}"
     "$venv/bin/python" -c 'import bpy, numpy; print("setup_blender:", bpy.app.version_string, "numpy", numpy.__version__)'
     touch "$venv/.smoothffd-done-$ver"
@@ -82,7 +83,8 @@ done
 # --- Debian 13 chroot with Python 3.13: bpy 5.1 and the tools to build the core for it -------
 CHROOT="$CACHE/trixie"
 CHROOT_VENV=/opt/venv-bpy-5.1
-TRIXIE_PACKAGES="python3.13 python3.13-venv python3.13-dev python3-pip python3-venv g++ cmake make ninja-build libeigen3-dev git ca-certificates"
+# Python 3.13 and the tools to build the core for it; the X11/GL libraries bpy links to.
+TRIXIE_PACKAGES="python3.13 python3.13-venv python3.13-dev python3-pip python3-venv g++ cmake make ninja-build libeigen3-dev git ca-certificates libx11-6 libxext6 libxrender1 libxfixes3 libxi6 libxxf86vm1 libxkbcommon0 libsm6 libice6 libgl1 libegl1"
 setup_chroot() {
     if [ -d "$CHROOT" ]; then
         # An interrupted earlier try: nothing may still be mounted in it before it is removed.
@@ -95,10 +97,12 @@ setup_chroot() {
     command -v debootstrap >/dev/null || $SUDO apt-get install -y --no-install-recommends debootstrap
     $SUDO debootstrap --variant=minbase trixie "$CHROOT" http://deb.debian.org/debian
     $SUDO cp /etc/resolv.conf "$CHROOT/etc/resolv.conf" 2>/dev/null || true
-    # shellcheck disable=SC2086
+    $SUDO touch "$CHROOT/.smoothffd-chroot-done"
+}
+setup_chroot_packages() {   # again whenever the list changes
     SMOOTHFFD_CHROOT="$CHROOT" bash "$ROOT/scripts/py313.sh" sh -c \
         "apt-get update && apt-get install -y --no-install-recommends $TRIXIE_PACKAGES && apt-get clean"
-    $SUDO touch "$CHROOT/.smoothffd-chroot-done"
+    echo "$TRIXIE_PACKAGES" | $SUDO tee "$CHROOT/.smoothffd-packages" >/dev/null
 }
 setup_venv313() {
     local ver="${BPY_VERSION[bpy-5.1]}"
@@ -110,7 +114,7 @@ setup_venv313() {
         SMOOTHFFD_CHROOT="$CHROOT" bash "$ROOT/scripts/py313.sh" update-ca-certificates >/dev/null
     fi
     SMOOTHFFD_CHROOT="$CHROOT" bash "$ROOT/scripts/py313.sh" sh -c "
-        set -e; rm -rf $CHROOT_VENV; python3.13 -m venv $CHROOT_VENV
+        set -e; python3.13 -m venv $CHROOT_VENV
         $CHROOT_VENV/bin/python -m pip install -q --disable-pip-version-check \
             'bpy==$ver' '${NUMPY_SPEC[bpy-5.1]}' 'pybind11>=2.13' scikit-build-core build
         $CHROOT_VENV/bin/python -c 'import bpy, numpy; print(\"setup_blender:\", bpy.app.version_string, \"numpy\", numpy.__version__)'
@@ -118,6 +122,13 @@ setup_venv313() {
 }
 if wanted bpy-5.1; then
     if [ ! -e "$CHROOT/.smoothffd-chroot-done" ]; then timed "trixie chroot" setup_chroot; fi
+    if [ "$(cat "$CHROOT/.smoothffd-packages" 2>/dev/null)" != "$TRIXIE_PACKAGES" ]; then
+        timed "trixie packages" setup_chroot_packages
+    fi
     if [ ! -e "$CHROOT$CHROOT_VENV/.smoothffd-done-${BPY_VERSION[bpy-5.1]}" ]; then timed bpy-5.1 setup_venv313; fi
+fi
+if wanted bpy-5.1 && [ -e "$CHROOT$CHROOT_VENV/.smoothffd-done-${BPY_VERSION[bpy-5.1]}" ]; then
+    # The core for Python 3.13 (skipped when up to date). Wheels from dist/ will replace this.
+    timed "core for Python 3.13" bash "$ROOT/scripts/build_py313.sh"
 fi
 echo "setup_blender: done (cache $CACHE)"

@@ -136,7 +136,7 @@ def _probe(runner):
             return None, f"Debian's Blender is not installed ({SETUP_HINT})"
         return [exe, "-b", "--factory-startup", "--python-exit-code", "1", "--python"], None
     if runner == "bpy-5.1":
-        if not os.path.exists(os.path.join(CHROOT + VENV313, "bin", "python")):
+        if not os.path.lexists(os.path.join(CHROOT + VENV313, "bin", "python")):   # a link into the chroot
             return None, f"no Python 3.13 chroot with bpy 5.1 at {CHROOT} ({SETUP_HINT})"
         if not installed_mode() and not glob.glob(
                 os.path.join(ROOT, "python", "smoothffd", "_core.cpython-313-*.so")):

@@ -19,5 +19,7 @@ if T.INSTALLED:
         sys.modules["smooth_ffd." + name] = getattr(T, name)
     addon.register = lambda: None
     T.setup()
-    T.finish()   # exits non-zero if the installed add-on or core came from the source tree
+    if not all(ok for _, ok in T._results):   # the installed add-on or core is the source tree's
+        T.finish()
 runpy.run_path(os.path.join(T.ROOT, "blender_scenes", "bench_addon.py"), run_name="__main__")
+T.exit_now(0)

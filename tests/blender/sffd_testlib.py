@@ -211,12 +211,23 @@ def run(name, fn, *a, **kw):
         check(name, False, "(exception)")
 
 
+def exit_now(code):
+    """Ends the process. As a Python module (PyPI bpy) skip the C++ static destructors: bpy
+    4.5.15 sometimes hangs for ever in exit() (GlobalState::~GlobalState destroys a condition
+    variable its delayed_close_thread still waits on; seen here with every script passed).
+    Inside the blender binary, a normal SystemExit (--python-exit-code)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    if not bpy.app.binary_path:
+        os._exit(code)
+    if code:
+        raise SystemExit(code)
+
+
 def finish():
     failed = [n for n, ok in _results if not ok]
     print(f"{len(_results) - len(failed)} passed, {len(failed)} failed")
-    sys.stdout.flush()
-    if failed or not _results:
-        raise SystemExit(1)
+    exit_now(1 if failed or not _results else 0)
 
 
 def timed(fn, *a, **kw):

@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Builds the core's Python module for CPython 3.13 (bpy 5.1) inside the trixie chroot
+# (scripts/setup_blender.sh makes it; scripts/py313.sh enters it): CPU backend only, no unit
+# tests, build folder build/py313, and the module lands in python/smoothffd/ as
+# _core.cpython-313-*.so beside the cp311 one. Skipped when that module is newer than every
+# native source. For development; shipped builds are wheels (scripts/package.sh).
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+VENV=/opt/venv-bpy-5.1
+shopt -s nullglob
+so=(python/smoothffd/_core.cpython-313-*.so)
+if [ ${#so[@]} -gt 0 ] && [ -z "$(find native CMakeLists.txt -newer "${so[0]}" -type f -print -quit)" ]; then
+    echo "build_py313: ${so[0]} is up to date"; exit 0
+fi
+# SMOOTHFFD_STATIC_RUNTIME: the chroot's g++ 14 libstdc++ is newer than the one bpy may load.
+bash scripts/py313.sh sh -c "
+    set -e
+    cmake -S . -B build/py313 -DCMAKE_BUILD_TYPE=Release -DSMOOTHFFD_CUDA=OFF -DSMOOTHFFD_TESTS=OFF \
+        -DSMOOTHFFD_STATIC_RUNTIME=ON -DPython_EXECUTABLE=/usr/bin/python3.13 \
+        -Dpybind11_DIR=\$($VENV/bin/python -m pybind11 --cmakedir) >/dev/null
+    cmake --build build/py313 -j$(nproc)"
+ls python/smoothffd/_core.cpython-313-*.so

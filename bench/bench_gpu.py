@@ -13,9 +13,8 @@ import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "python"))
-import smoothffd  # noqa: E402
-from smoothffd import _core  # noqa: E402
+import smoothffd  # the installed package, or the source tree's with PYTHONPATH=python
+from smoothffd import _core
 
 
 def torus(nu, nv, R=1.0, r=0.4):

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Bounded fuzzing (about a minute in all): the libFuzzer target over plan build + CPU evaluation
-# (native/fuzz/fuzz_plan.cpp, clang++ -fsanitize=fuzzer,address,undefined) and the OBJ reader
-# (native/fuzz/fuzz_obj.py: atheris when build/venv-fuzz has it, else a seeded mutation loop).
+# (native/fuzz/fuzz_plan.cpp, clang++ -fsanitize=fuzzer,address,undefined; the core's sources
+# but the CUDA backend's) and the OBJ reader (native/fuzz/fuzz_obj.py: atheris when build/venv-fuzz has it, else a seeded mutation loop).
 # Seeds: native/fuzz/corpus/{plan,obj}; new inputs go to build/fuzz/corpus-*, crashes to
 # build/fuzz/crash-*. FUZZ_SECONDS (default 30) per target. Exit status non-zero on any crash.
 set -euo pipefail
@@ -15,7 +15,7 @@ command -v "$CXX" >/dev/null || { echo "fuzz.sh: $CXX not found (apt-get install
 FLAGS=(-std=c++17 -O2 -gline-tables-only -fsanitize=fuzzer-no-link,address,undefined
        -fno-sanitize-recover=all -Inative -I/usr/include/eigen3)
 objs=()
-for src in native/smoothffd/*/*.cpp native/fuzz/fuzz_plan.cpp; do
+for src in $(ls native/smoothffd/*/*.cpp | grep -v "^native/smoothffd/cuda/") native/fuzz/fuzz_plan.cpp; do
   o="$OUT/obj/$(echo "${src%.cpp}" | tr / _).o"
   # Rebuild when the source or any core header is newer than the object.
   if [ ! -f "$o" ] || [ "$src" -nt "$o" ] || [ -n "$(find native/smoothffd -name '*.hpp' -newer "$o" | head -1)" ]; then

@@ -3,7 +3,8 @@
 # for Python 3.13), builds the shipped artefacts (scripts/package.sh -> dist/), then tests:
 #   1. the native unit tests (CTest), the same under ASan + UBSan, a bounded fuzzing run;
 #   2. every pytest suite against the cp311 WHEEL installed in a fresh venv, run from outside
-#      the source tree (SMOOTHFFD_TEST_INSTALLED=1: the tests fail if the tree's copy is used),
+#      the source tree (SMOOTHFFD_TEST_INSTALLED=1: the tests fail if the tree's copy is used)
+#      with the CUDA toolkit hidden,
 #      the Blender suites installing dist/'s extension / legacy zip into each Blender;
 #   3. the cp313 wheel in a fresh Python 3.13 venv (the core's own suites that need no Blender).
 # Arguments go to the cp311 pytest run (e.g. -k parity).
@@ -32,8 +33,9 @@ rm -rf "$VENV"
 "$VENV/bin/pip" install -q numpy pytest dist/smoothffd-*-cp311-*.whl
 RUN="$(mktemp -d)"
 trap 'rm -rf "$RUN"' EXIT
-(cd "$RUN" && SMOOTHFFD_TEST_INSTALLED=1 "$VENV/bin/python" -m pytest -q -ra -p no:cacheprovider \
-    "$ROOT/tests" "$@")
+# With the CUDA toolkit hidden (scripts/without_cuda.sh), as on users' machines.
+(cd "$RUN" && SMOOTHFFD_TEST_INSTALLED=1 bash "$ROOT/scripts/without_cuda.sh" \
+    "$VENV/bin/python" -m pytest -q -ra -p no:cacheprovider "$ROOT/tests" "$@")
 
 echo "== pytest: cp313 wheel in a fresh Python 3.13 venv (Debian 13 chroot)"
 bash scripts/py313.sh sh -c "rm -rf /opt/venv-test313 && python3.13 -m venv /opt/venv-test313 &&

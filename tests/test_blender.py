@@ -169,6 +169,8 @@ def blender_cmd(runner, script, *args):
 
 
 def _run(cmd, timeout=TIMEOUT, extra_env=None):
+    # Installed mode: not even the working directory is the source tree.
+    cwd = (extra_env or {}).get("BLENDER_USER_RESOURCES") if installed_mode() else ROOT
     env = dict(os.environ)
     for k, v in (extra_env or {}).items():
         if v is None:
@@ -176,8 +178,10 @@ def _run(cmd, timeout=TIMEOUT, extra_env=None):
         else:
             env[k] = v
     env.setdefault("PYTHONUNBUFFERED", "1")
+    if cwd:
+        os.makedirs(cwd, exist_ok=True)
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env,
-                          cwd=ROOT)
+                          cwd=cwd or ROOT)
     out = proc.stdout + proc.stderr
     # Shown with `pytest -s`, and in the failure message otherwise.
     print(out)

@@ -9,6 +9,7 @@ Skipped (with the reason) where no usable CUDA device exists.
 """
 
 import os
+import sys
 
 import numpy as np
 import pytest
@@ -495,19 +496,11 @@ def test_loose_vertices(path):
     check(mesh, bspline(rng), level=4, path=path)
 
 
-def torus(nu=40, nv=30, R=1.0, r=0.4):
+def torus(nu=40, nv=30):
     """bench/workloads.py's W1 mesh, smaller: a torus with exact smooth normals."""
-    u = np.linspace(0, 2 * np.pi, nu, endpoint=False)
-    v = np.linspace(0, 2 * np.pi, nv, endpoint=False)
-    U, Vv = np.meshgrid(u, v, indexing="ij")
-    P = np.stack([(R + r * np.cos(Vv)) * np.cos(U), (R + r * np.cos(Vv)) * np.sin(U), r * np.sin(Vv)], -1)
-    N = np.stack([np.cos(Vv) * np.cos(U), np.cos(Vv) * np.sin(U), np.sin(Vv)], -1)
-    idx = np.arange(nu * nv).reshape(nu, nv)
-    a, b = idx, np.roll(idx, -1, axis=0)
-    c, d = np.roll(idx, -1, axis=1), np.roll(b, -1, axis=1)
-    F = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
-    P, N = P.reshape(-1, 3), N.reshape(-1, 3)
-    return smoothffd.Mesh(P, F, corner_normals=N[F.reshape(-1)])
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "bench"))
+    import workloads
+    return workloads.torus(nu, nv)
 
 
 def w1_lattice(seed=0):

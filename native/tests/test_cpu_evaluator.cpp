@@ -16,26 +16,7 @@ using namespace sffd_test;
 
 namespace {
 
-struct Out {
-  std::vector<float> pos, nrm;
-};
-
-Out run(const std::shared_ptr<const Plan>& plan, const std::vector<float>& D, int threads = 0) {
-  CpuEvaluator ev(plan, threads);
-  Out o;
-  o.pos.resize(3 * (size_t)plan->output_vertices);
-  o.nrm.resize(9 * (size_t)plan->output_triangles);
-  ev.evaluate(D.data(), o.pos.data(), o.nrm.data());
-  return o;
-}
-
-std::shared_ptr<const Plan> plan_of(const InputMesh& m, const LatticeSpec& s, int level) {
-  PlanOptions opt;
-  opt.level = level;
-  return std::make_shared<const Plan>(build_plan(m, s, opt));
-}
-
-void expect_unit_normals(const Out& o) {
+void expect_unit_normals(const CpuOut& o) {
   for (size_t i = 0; i < o.nrm.size(); i += 3) {
     double l = std::sqrt(double(o.nrm[i]) * o.nrm[i] + double(o.nrm[i + 1]) * o.nrm[i + 1] +
                          double(o.nrm[i + 2]) * o.nrm[i + 2]);
@@ -49,7 +30,7 @@ TEST(CpuEvaluator, IdentityKeepsAFlatGridFlat) {
   for (auto s : {bspline_box(2, 4), bspline_box(3, 7), blender_box(BlenderInterp::BSpline, 4)}) {
     InputMesh m = flat_grid(5, 0.1, 0.9, 0.37);
     auto plan = plan_of(m, s, 4);
-    Out o = run(plan, zero_values(s));
+    CpuOut o = run_cpu(plan, zero_values(s));
     const int V = plan->input_vertices;
     for (int v = 0; v < V; ++v)
       for (int i = 0; i < 3; ++i) EXPECT_EQ(o.pos[3 * v + i], (float)m.positions[3 * v + i]);
@@ -69,7 +50,7 @@ TEST(CpuEvaluator, IdentityFixesInputVerticesOfAClosedMesh) {
   InputMesh m = octahedron(0.47, 0.52, 0.55, 0.4);
   LatticeSpec s = bspline_box(2, 5);
   auto plan = plan_of(m, s, 5);
-  Out o = run(plan, zero_values(s));
+  CpuOut o = run_cpu(plan, zero_values(s));
   for (int v = 0; v < 6; ++v)
     for (int i = 0; i < 3; ++i) EXPECT_EQ(o.pos[3 * v + i], (float)m.positions[3 * v + i]);
   for (float x : o.pos) ASSERT_TRUE(std::isfinite(x));
@@ -86,11 +67,11 @@ TEST(CpuEvaluator, TranslationMovesEverything) {
   InputMesh m = octahedron(0.47, 0.52, 0.55, 0.4);
   LatticeSpec s = bspline_box(3, 6);
   auto plan = plan_of(m, s, 4);
-  Out rest = run(plan, zero_values(s));
+  CpuOut rest = run_cpu(plan, zero_values(s));
   std::vector<float> D(3 * (size_t)s.count());
   const float t[3] = {0.25f, -0.5f, 1.0f};
   for (size_t i = 0; i < D.size(); ++i) D[i] = t[i % 3];
-  Out moved = run(plan, D);
+  CpuOut moved = run_cpu(plan, D);
   for (size_t i = 0; i < rest.pos.size(); ++i) EXPECT_NEAR(moved.pos[i], rest.pos[i] + t[i % 3], 2e-6f);
   for (size_t i = 0; i < rest.nrm.size(); ++i) EXPECT_NEAR(moved.nrm[i], rest.nrm[i], 1e-5f);
 }
@@ -104,7 +85,7 @@ TEST(CpuEvaluator, ThreadCountDoesNotChangeBits) {
   std::uniform_real_distribution<float> U(-0.2f, 0.2f);
   std::vector<float> D(3 * (size_t)s.count());
   for (float& d : D) d = U(rng);
-  Out one = run(plan, D, 1), two = run(plan, D, 2), many = run(plan, D, 7);
+  CpuOut one = run_cpu(plan, D, 1), two = run_cpu(plan, D, 2), many = run_cpu(plan, D, 7);
   ASSERT_GT(plan->output_vertices, 4096);  // several chunks
   EXPECT_EQ(0, std::memcmp(one.pos.data(), two.pos.data(), 4 * one.pos.size()));
   EXPECT_EQ(0, std::memcmp(one.nrm.data(), two.nrm.data(), 4 * one.nrm.size()));
@@ -122,7 +103,7 @@ TEST(CpuEvaluator, RandomMeshesAndControlValuesGiveFiniteOutput) {
     auto plan = plan_of(m, s, lvl(rng));
     std::vector<float> D(3 * (size_t)s.count());
     for (float& d : D) d = U(rng);
-    Out o = run(plan, D);
+    CpuOut o = run_cpu(plan, D);
     for (float x : o.pos) ASSERT_TRUE(std::isfinite(x)) << "trial " << trial;
     for (float x : o.nrm) ASSERT_TRUE(std::isfinite(x)) << "trial " << trial;
     expect_unit_normals(o);
@@ -140,7 +121,7 @@ TEST(CpuEvaluator, CollapsingLatticeGivesFiniteOutput) {
   for (int i = 0; i < 4; ++i)
     for (int j = 0; j < 4; ++j)
       for (int k = 0; k < 4; ++k) D.insert(D.end(), {(float)-g[i], (float)-g[j], (float)-g[k]});
-  Out o = run(plan, D);
+  CpuOut o = run_cpu(plan, D);
   for (float x : o.pos) EXPECT_NEAR(x, 0.0f, 1e-5f);
   for (float x : o.nrm) ASSERT_TRUE(std::isfinite(x));
   expect_unit_normals(o);
@@ -158,7 +139,7 @@ TEST(CpuEvaluator, HugeDisplacementsGiveFiniteOutput) {
   for (float scale : {1e20f, 1e30f, 1e36f}) {
     std::vector<float> D(3 * (size_t)s.count());
     for (size_t i = 0; i < D.size(); ++i) D[i] = scale * float((i * 7919) % 13) / 13.0f * (i % 2 ? 1 : -1);
-    Out o = run(plan, D);
+    CpuOut o = run_cpu(plan, D);
     for (float x : o.pos) ASSERT_TRUE(std::isfinite(x)) << scale;
     expect_unit_normals(o);
   }
@@ -179,11 +160,11 @@ TEST(CpuEvaluator, PositionsOnlyMatchesEvaluateBitwise) {
     std::vector<float> D(3 * (size_t)s.count()), other(D.size());
     for (float& d : D) d = U(rng);
     for (float& d : other) d = U(rng);
-    Out full = run(plan, D);
+    CpuOut full = run_cpu(plan, D);
     std::vector<float> fresh(full.pos.size()), reused(full.pos.size());
     CpuEvaluator a(plan), b(plan);
     a.evaluate_positions(D.data(), fresh.data());
-    Out scratch{std::vector<float>(full.pos.size()), std::vector<float>(full.nrm.size())};
+    CpuOut scratch{std::vector<float>(full.pos.size()), std::vector<float>(full.nrm.size())};
     b.evaluate(other.data(), scratch.pos.data(), scratch.nrm.data());
     StageTimes t = b.evaluate_positions(D.data(), reused.data());
     ASSERT_EQ(0, std::memcmp(full.pos.data(), fresh.data(), 4 * full.pos.size())) << "case " << cases;

@@ -19,27 +19,6 @@ using namespace sffd_test;
 
 namespace {
 
-struct Out {
-  std::vector<float> pos, nrm;
-};
-
-Out run(const std::shared_ptr<const Plan>& plan, const std::vector<float>& D, const std::string& isa,
-        int threads = 0) {
-  CpuEvaluator ev(plan, threads, isa);
-  EXPECT_EQ(ev.isa(), isa);
-  Out o;
-  o.pos.resize(3 * (size_t)plan->output_vertices);
-  o.nrm.resize(9 * (size_t)plan->output_triangles);
-  ev.evaluate(D.data(), o.pos.data(), o.nrm.data());
-  return o;
-}
-
-std::shared_ptr<const Plan> plan_of(const InputMesh& m, const LatticeSpec& s, int level) {
-  PlanOptions opt;
-  opt.level = level;
-  return std::make_shared<const Plan>(build_plan(m, s, opt));
-}
-
 std::vector<float> random_values(const LatticeSpec& s, unsigned seed, float amplitude) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> U(-amplitude, amplitude);
@@ -103,7 +82,7 @@ TEST(CpuIsa, PathsAgreeToFloatRounding) {
   for (const Case& c : cases()) {
     auto plan = plan_of(c.mesh, c.lattice, c.level);
     auto D = random_values(c.lattice, 11, c.amplitude);
-    Out a = run(plan, D, base), b = run(plan, D, "x86-64-v3");
+    CpuOut a = run_cpu(plan, D, 0, base), b = run_cpu(plan, D, 0, "x86-64-v3");
     const double size = model_size(a.pos);
     ASSERT_GT(size, 0.1) << c.name;
     double dpos = 0, dnrm = 0;
@@ -121,9 +100,9 @@ TEST(CpuIsa, EachPathIsBitwiseTheSameForEveryThreadCount) {
     for (const Case& c : cases()) {
       auto plan = plan_of(c.mesh, c.lattice, c.level);
       auto D = random_values(c.lattice, 5, c.amplitude);
-      Out one = run(plan, D, isa, 1);
+      CpuOut one = run_cpu(plan, D, 1, isa);
       for (int threads : {2, 7}) {
-        Out many = run(plan, D, isa, threads);
+        CpuOut many = run_cpu(plan, D, threads, isa);
         EXPECT_EQ(0, std::memcmp(one.pos.data(), many.pos.data(), 4 * one.pos.size())) << isa << ", " << c.name;
         EXPECT_EQ(0, std::memcmp(one.nrm.data(), many.nrm.data(), 4 * one.nrm.size())) << isa << ", " << c.name;
       }
@@ -136,7 +115,7 @@ TEST(CpuIsa, EachPathsPositionsOnlyMatchItsEvaluateBitwise) {
     for (const Case& c : cases()) {
       auto plan = plan_of(c.mesh, c.lattice, c.level);
       auto D = random_values(c.lattice, 9, c.amplitude);
-      Out full = run(plan, D, isa);
+      CpuOut full = run_cpu(plan, D, 0, isa);
       CpuEvaluator ev(plan, 0, isa);
       std::vector<float> pos(full.pos.size());
       ev.evaluate_positions(D.data(), pos.data());

@@ -3,14 +3,40 @@
 
 #include <cmath>
 #include <map>
+#include <memory>
 #include <random>
+#include <string>
 #include <utility>
 #include <vector>
 
 #include "smoothffd/lattice/lattice_spec.hpp"
+#include "smoothffd/eval/cpu_evaluator.hpp"
 #include "smoothffd/plan/plan.hpp"
 
 namespace sffd_test {
+
+// A plan at `level`, shared as the evaluators take it.
+inline std::shared_ptr<const sffd::Plan> plan_of(const sffd::InputMesh& m, const sffd::LatticeSpec& s,
+                                                 int level) {
+  sffd::PlanOptions opt;
+  opt.level = level;
+  return std::make_shared<const sffd::Plan>(sffd::build_plan(m, s, opt));
+}
+
+// One CPU frame: positions (N x 3) and corner normals (T x 3 x 3); isa as CpuEvaluator's.
+struct CpuOut {
+  std::vector<float> pos, nrm;
+};
+
+inline CpuOut run_cpu(const std::shared_ptr<const sffd::Plan>& plan, const std::vector<float>& D,
+                      int threads = 0, const std::string& isa = "auto") {
+  sffd::CpuEvaluator ev(plan, threads, isa);
+  CpuOut o;
+  o.pos.resize(3 * (size_t)plan->output_vertices);
+  o.nrm.resize(9 * (size_t)plan->output_triangles);
+  ev.evaluate(D.data(), o.pos.data(), o.nrm.data());
+  return o;
+}
 
 using sffd::AxisBasis;
 using sffd::InputMesh;

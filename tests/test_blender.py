@@ -99,10 +99,11 @@ def _source_paths():
 
 
 def _strip_source(pythonpath):
-    """PYTHONPATH without the source tree's python/ and addon/ (relative entries are relative
-    to the tests' working directory, ROOT)."""
+    """PYTHONPATH without the source tree's python/ and addon/ (a relative entry is dropped
+    when it names them from pytest's working directory or from ROOT)."""
     keep = [p for p in (pythonpath or "").split(os.pathsep)
-            if p and os.path.realpath(os.path.join(ROOT, p)) not in _source_paths()]
+            if p and not {os.path.realpath(p), os.path.realpath(os.path.join(ROOT, p))}
+            & _source_paths()]
     return os.pathsep.join(keep) or None
 
 

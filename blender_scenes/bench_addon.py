@@ -3,7 +3,7 @@ viewport levels 4 and 10 beside Blender's Lattice + Subdivision Surface at the s
 (levels 2 and 3), in the same run. Prints, asserts nothing.
 
     blender -b --factory-startup --python blender_scenes/bench_addon.py [-- REPEATS [ab] [noexact]]
-    build/venv-bpy/bin/python blender_scenes/bench_addon.py [REPEATS [ab] [noexact]]
+    ~/.cache/smoothffd/venv-bpy-5.0/bin/python blender_scenes/bench_addon.py [REPEATS [ab] [noexact]]
 
 Each row splits its median update into where the time went, from marker handlers placed
 first and last in depsgraph_update_pre/post: "pre" (Smooth FFD's work in

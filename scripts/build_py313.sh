@@ -13,11 +13,11 @@ so=(python/smoothffd/_core.cpython-313-*.so)
 if [ ${#so[@]} -gt 0 ] && [ -z "$(find native CMakeLists.txt -newer "${so[0]}" -type f -print -quit)" ]; then
     echo "build_py313: ${so[0]} is up to date"; exit 0
 fi
-# SMOOTHFFD_STATIC_RUNTIME: the chroot's g++ 14 libstdc++ is newer than the one bpy may load.
-bash scripts/py313.sh sh -c "
+# This machine's g++ and libraries (--host-toolchain), as for the shipped cp313 wheel.
+bash scripts/py313.sh --host-toolchain sh -c "
     set -e
     cmake -S . -B build/py313 -DCMAKE_BUILD_TYPE=Release -DSMOOTHFFD_CUDA=OFF -DSMOOTHFFD_TESTS=OFF \
-        -DSMOOTHFFD_STATIC_RUNTIME=ON -DPython_EXECUTABLE=/usr/bin/python3.13 \
-        -Dpybind11_DIR=\$($VENV/bin/python -m pybind11 --cmakedir) >/dev/null
+        -DPython_EXECUTABLE=/usr/bin/python3.13 \
+        -Dpybind11_DIR=\$($VENV/bin/python -m pybind11 --cmakedir) \$CMAKE_ARGS >/dev/null
     cmake --build build/py313 -j$(nproc)"
 ls python/smoothffd/_core.cpython-313-*.so

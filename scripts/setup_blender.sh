@@ -127,8 +127,4 @@ if wanted bpy-5.1; then
     fi
     if [ ! -e "$CHROOT$CHROOT_VENV/.smoothffd-done-${BPY_VERSION[bpy-5.1]}" ]; then timed bpy-5.1 setup_venv313; fi
 fi
-if wanted bpy-5.1 && [ -e "$CHROOT$CHROOT_VENV/.smoothffd-done-${BPY_VERSION[bpy-5.1]}" ]; then
-    # The core for Python 3.13 (skipped when up to date). Wheels from dist/ will replace this.
-    timed "core for Python 3.13" bash "$ROOT/scripts/build_py313.sh"
-fi
 echo "setup_blender: done (cache $CACHE)"

@@ -1,4 +1,4 @@
-"""Installs the add-on zip (scripts/build_addon_zip.sh) the way users do: as an extension on
+"""Installs the add-on zip (dist/, scripts/package.sh) the way users do: as an extension on
 4.2+ (Install from Disk) and as a legacy add-on before; then checks that it registered, that
 it runs its *bundled* core, and that a Smooth FFD modifier works. Argument: the zip.
 Run with BLENDER_USER_* pointing at a temporary folder (tests/test_blender.py does)."""

@@ -4,8 +4,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-need=(cmake g++ make pybind11-dev libeigen3-dev python3-dev python3-numpy python3-pytest
-      python3-matplotlib libgtest-dev clang libclang-rt-14-dev)
+# python3-venv: scripts/package.sh and the tests' fresh venvs; qemu-user: the wheels run under
+# emulated older CPUs (tests/test_isa.py); binutils: readelf/objdump for the artefact checks.
+need=(cmake g++ make binutils pybind11-dev libeigen3-dev python3-dev python3-venv python3-numpy
+      python3-pytest python3-matplotlib libgtest-dev clang libclang-rt-14-dev qemu-user)
 missing=()
 for p in "${need[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")

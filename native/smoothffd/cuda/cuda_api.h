@@ -26,7 +26,6 @@ extern "C" {
 
 #define SFFD_CUDA_ABI_VERSION 1
 #define SFFD_CUDA_ENTRY "sffd_cuda_api_v1"
-#define SFFD_CUDA_LIBRARY "libsmoothffd_cuda.so"
 
 /* What a failed call raises on the C++ side (cuda_loader.cpp). */
 enum sffd_cuda_code {

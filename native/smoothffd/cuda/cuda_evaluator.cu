@@ -6,7 +6,6 @@
 #include <cublas_v2.h>  // types only: libcublas is loaded when the cublas path is first asked for
 #include <cuda_pipeline.h>
 #include <cuda_runtime.h>
-#include <dlfcn.h>
 
 #include <algorithm>
 #include <atomic>
@@ -18,6 +17,7 @@
 #include <unordered_map>
 
 #include "smoothffd/core/parallel.hpp"
+#include "smoothffd/core/platform.hpp"
 #include "smoothffd/eval/stages.hpp"
 #include "smoothffd/plan/tessellation.hpp"
 
@@ -86,9 +86,11 @@ struct CublasApi {
                           const float*, int, const float*, int, const float*, float*, int) = nullptr;
 };
 
-#define SFFD_STR2(x) #x
-#define SFFD_STR(x) SFFD_STR2(x)
-constexpr const char* kCublasLibrary = "libcublas.so." SFFD_STR(CUBLAS_VER_MAJOR);
+// libcublas.so.13 for the toolkit this library is built with.
+const std::string& cublas_library() {
+  static const std::string name = platform::library_file_name("cublas", CUBLAS_VER_MAJOR);
+  return name;
+}
 
 // The table, loaded once (never unloaded); throws CudaError saying what is missing.
 const CublasApi& cublas_api() {
@@ -99,24 +101,18 @@ const CublasApi& cublas_api() {
   std::lock_guard<std::mutex> lock(mu);
   if (!tried) {
     tried = true;
-    // The loader's search (LD_LIBRARY_PATH, ld.so.cache), then the toolkit's usual places.
-    std::string tried_text;
-    void* h = nullptr;
-    const std::string dirs[] = {"", "/usr/local/cuda/lib64/", "/usr/local/cuda/lib/",
-                                "/usr/local/cuda/targets/x86_64-linux/lib/"};
-    for (const std::string& d : dirs) {
-      h = dlopen((d + kCublasLibrary).c_str(), RTLD_NOW | RTLD_LOCAL);
-      if (h) break;
-      const char* e = dlerror();
-      if (d.empty()) tried_text = e ? e : "not found";
-    }
+    // The system's search (LD_LIBRARY_PATH, ld.so.cache), then the toolkit's usual places.
+    std::string why;
+    void* h = platform::open_library(cublas_library(), &why);
+    for (const char* const* d = platform::cuda_toolkit_library_dirs(); !h && *d; ++d)
+      h = platform::open_library(platform::path_join(*d, cublas_library()), nullptr);
     if (!h) {
-      failure = std::string("the cublas path needs ") + kCublasLibrary + " from the CUDA toolkit: " + tried_text +
-                " (also not in /usr/local/cuda/lib64); the default path, 'fused', does not need it";
+      failure = "the cublas path needs " + cublas_library() + " from the CUDA toolkit: " + why + " (also not in " +
+                platform::cuda_toolkit_library_dirs()[0] + "); the default path, 'fused', does not need it";
     } else {
       auto sym = [&](const char* name, auto& fn) {
-        void* f = dlsym(h, name);
-        if (!f && failure.empty()) failure = std::string(kCublasLibrary) + " has no " + name;
+        void* f = platform::library_symbol(h, name);
+        if (!f && failure.empty()) failure = cublas_library() + " has no " + name;
         fn = reinterpret_cast<std::remove_reference_t<decltype(fn)>>(f);
       };
       sym("cublasCreate_v2", api.create);
@@ -845,12 +841,12 @@ std::pair<bool, std::string> device_status() {
   // 1. The driver. The CUDA runtime (linked statically) loads libcuda.so.1 itself; loading it
   //    here first tells "no driver" apart from the runtime's other errors.
   static void* libcuda = nullptr;  // kept loaded once found
-  if (!libcuda) libcuda = dlopen("libcuda.so.1", RTLD_NOW | RTLD_LOCAL);
-  if (!libcuda) {
-    const char* e = dlerror();
-    return {false, std::string("no NVIDIA driver: libcuda.so.1 could not be loaded (") + (e ? e : "not found") +
+  const std::string driver_library = platform::library_file_name("cuda", 1);
+  std::string why;
+  if (!libcuda) libcuda = platform::open_library(driver_library, &why);
+  if (!libcuda)
+    return {false, "no NVIDIA driver: " + driver_library + " could not be loaded (" + why +
                        "); install the NVIDIA driver to use the GPU"};
-  }
   int driver = 0;
   cudaError_t err = cudaDriverGetVersion(&driver);
   if (err != cudaSuccess || driver == 0) {

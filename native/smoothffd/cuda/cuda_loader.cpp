@@ -3,27 +3,13 @@
 // module with the host compiler; needs no CUDA header or library.
 #include "smoothffd/cuda/cuda_loader.hpp"
 
-#include <dlfcn.h>
-#include <limits.h>
-#include <stdlib.h>
-#include <sys/stat.h>
+#include "smoothffd/core/platform.hpp"
 
 #include <stdexcept>
 
 namespace sffd {
 
 namespace {
-
-// Directory of the file that holds this function (the module), absolute.
-std::string own_directory() {
-  Dl_info info{};
-  if (!dladdr(reinterpret_cast<void*>(&own_directory), &info) || !info.dli_fname) return "";
-  std::string file = info.dli_fname;
-  char buf[PATH_MAX];
-  if (realpath(file.c_str(), buf)) file = buf;
-  const size_t slash = file.rfind('/');
-  return slash == std::string::npos ? "." : file.substr(0, slash);
-}
 
 uint64_t plan_tail() {
   static const Plan p;
@@ -39,24 +25,22 @@ Loaded load() {
   Loaded l;
   const std::string path = cuda_library_path();
   if (path.empty()) {
-    l.why = "the CUDA backend could not be looked for: dladdr found no file for the smoothffd module";
+    l.why = "the CUDA backend could not be looked for: the system names no file for the smoothffd module";
     return l;
   }
-  struct stat st;
-  if (stat(path.c_str(), &st) != 0) {
+  if (!platform::file_exists(path)) {
     l.why = "the CUDA backend is not installed: " + path +
             " does not exist (this smoothffd was built without CUDA, or the library was not shipped)";
     return l;
   }
-  dlerror();
-  void* h = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+  std::string why;
+  void* h = platform::open_library(path, &why);
   if (!h) {
-    const char* e = dlerror();
-    l.why = "the CUDA backend " + path + " failed to load: " + (e ? e : "unknown dlopen error");
+    l.why = "the CUDA backend " + path + " failed to load: " + why;
     return l;
   }
   // Kept loaded for the life of the process (it holds the CUDA runtime's state).
-  auto entry = reinterpret_cast<sffd_cuda_entry_fn>(dlsym(h, SFFD_CUDA_ENTRY));
+  auto entry = reinterpret_cast<sffd_cuda_entry_fn>(platform::library_symbol(h, SFFD_CUDA_ENTRY));
   if (!entry) {
     l.why = path + " is not a smoothffd CUDA backend: it has no " SFFD_CUDA_ENTRY;
     return l;
@@ -108,16 +92,16 @@ StageTimes to_times(const sffd_cuda_times& t) {
 
 std::string cuda_library_path() {
   static const std::string path = [] {
-    const std::string dir = own_directory();
-    return dir.empty() ? std::string() : dir + "/" + SFFD_CUDA_LIBRARY;
+    // The folder of this module's own file (the function's address names it).
+    const std::string dir = platform::directory_of(reinterpret_cast<const void*>(&cuda_library_path));
+    return dir.empty() ? std::string() : platform::path_join(dir, platform::library_file_name("smoothffd_cuda"));
   }();
   return path;
 }
 
 bool cuda_library_present() {
-  struct stat st;
   const std::string p = cuda_library_path();
-  return !p.empty() && stat(p.c_str(), &st) == 0;
+  return !p.empty() && platform::file_exists(p);
 }
 
 std::pair<bool, std::string> cuda_status() {

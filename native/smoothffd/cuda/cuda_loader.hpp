@@ -21,8 +21,8 @@
 
 namespace sffd {
 
-// Where the module looks for the library: SFFD_CUDA_LIBRARY in the directory of the file that
-// holds this code (dladdr), made absolute once.
+// Where the module looks for the library: libsmoothffd_cuda.so in the folder of the file that
+// holds this code (core/platform.hpp), made absolute once.
 std::string cuda_library_path();
 // Whether that file exists (the backend was built or shipped); loads nothing.
 bool cuda_library_present();

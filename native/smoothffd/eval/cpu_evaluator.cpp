@@ -5,20 +5,15 @@
 #include <stdexcept>
 
 #include "smoothffd/core/parallel.hpp"
+#include "smoothffd/core/platform.hpp"
 
 namespace sffd {
 
 namespace {
 
-// Whether the CPU (and the OS: YMM state saved) runs x86-64-v3 code: AVX2 and FMA, and the
-// BMI1/BMI2 that -march=x86-64-v3 also lets the compiler use. libgcc's (or compiler-rt's)
-// CPUID table, filled once at load time.
 bool cpu_runs_v3() {
-#if defined(SFFD_HAVE_ISA_V3) && (defined(__GNUC__) || defined(__clang__)) && \
-    (defined(__x86_64__) || defined(__i386__))
-  __builtin_cpu_init();
-  return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
-         __builtin_cpu_supports("bmi") && __builtin_cpu_supports("bmi2");
+#if defined(SFFD_HAVE_ISA_V3)
+  return platform::cpu_runs_x86_64_v3();
 #else
   return false;
 #endif

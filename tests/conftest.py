@@ -24,9 +24,10 @@ def pytest_configure(config):
     if os.environ.get("SMOOTHFFD_TEST_INSTALLED") == "1":
         import smoothffd
         where = os.path.realpath(smoothffd.__file__)
-        if where.startswith(os.path.realpath(ROOT) + os.sep):
+        source = os.path.realpath(os.path.join(ROOT, "python")) + os.sep
+        if where.startswith(source):
             raise RuntimeError(f"SMOOTHFFD_TEST_INSTALLED=1 but smoothffd comes from the source "
-                               f"tree ({where}): run from outside it, without PYTHONPATH=python")
+                               f"tree ({where}): run without PYTHONPATH=python")
         from smoothffd import _core  # noqa: F401  (an ImportError here fails the run)
 
 # tests/blender/ holds scripts that run *inside* Blender; tests/test_blender.py drives them.

@@ -175,6 +175,11 @@ def make_lattice_doc(box_min, box_max, shape, degree=(2, 2, 2), kind="bspline", 
 def _ensure_parent(path):
     """Create the output's folder, so `-o out/x.obj` works on a fresh checkout."""
     parent = os.path.dirname(os.path.abspath(path))
+    probe = parent
+    while probe and not os.path.exists(probe):
+        probe = os.path.dirname(probe)
+    if probe and not os.path.isdir(probe):
+        raise ValueError(f"{path}: cannot write there: {probe} is a file, not a folder")
     os.makedirs(parent, exist_ok=True)
 
 

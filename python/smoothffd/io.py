@@ -10,9 +10,12 @@ Writing is vectorized: the whole file is produced by a few large ``%``-format ca
 """
 from __future__ import annotations
 
+import contextlib
 import gzip
+import io as stdio
 import os
 import re
+import tempfile
 import warnings
 from typing import NamedTuple, Optional
 
@@ -55,6 +58,39 @@ def _open(path, mode, **kw):
     if path.endswith(".gz"):  # level 6: most of level 9's ratio at a fraction of its time
         return gzip.open(path, mode + "t", compresslevel=6, **kw)
     return open(path, mode, **kw)
+
+
+@contextlib.contextmanager
+def atomic_write(path, encoding="utf-8"):
+    """A text file written as a whole or not at all: the data go to a temporary file in the
+    same folder, which replaces ``path`` (os.replace) only when the block ends without an
+    exception. Any failure (a full disk, Ctrl-C, an error while formatting) removes the
+    temporary file and leaves an existing ``path`` as it was, so writing a result over its
+    own input is safe. gzip-compressed when the name ends with .gz."""
+    path = os.fspath(path)
+    folder = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix="." + os.path.basename(path) + ".", suffix=".tmp")
+    try:
+        with open(fd, "wb") as raw:
+            # level 6: most of level 9's ratio at a fraction of its time
+            sink = gzip.GzipFile(fileobj=raw, mode="wb", compresslevel=6) if path.endswith(".gz") else raw
+            fh = stdio.TextIOWrapper(sink, encoding=encoding, newline="\n")
+            yield fh
+            fh.flush()
+            fh.detach()
+            if sink is not raw:
+                sink.close()  # the gzip trailer; raw stays open
+            raw.flush()
+            os.fsync(raw.fileno())
+        # mkstemp makes the file private (0600): give it what a plain open() would.
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
 
 
 def _error(path, lineno, msg):
@@ -497,7 +533,7 @@ def write_obj(path, positions, triangles, corner_normals=None, uvs=None, *, head
         cols.append(inv + 1)
         parts.append((name, uniq))
 
-    with _open(path, "w", encoding="ascii", newline="\n") as fh:
+    with atomic_write(path) as fh:
         if header:
             for line in str(header).splitlines():
                 fh.write(f"# {line}\n")

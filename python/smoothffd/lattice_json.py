@@ -265,5 +265,6 @@ def save_lattice(path, lattice, name=None):
     doc = lattice if isinstance(lattice, dict) else lattice_to_dict(lattice, name=name)
     parse_lattice(doc, os.fspath(path))  # never write a file we could not read back
     text = dumps_lattice(doc)
-    with open(path, "w", encoding="utf-8") as fh:
+    from .io import atomic_write  # written whole or not at all
+    with atomic_write(path) as fh:
         fh.write(text)

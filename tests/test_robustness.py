@@ -5,6 +5,7 @@ the GIL released during native work, and OBJ reader regressions found by fuzzing
 See docs/robustness.md for the whole picture (native sanitizers, fuzzers, Blender side).
 """
 import importlib
+import os
 import threading
 import time
 import warnings
@@ -464,3 +465,33 @@ def test_magnitudes_beyond_float32_are_refused():
         with pytest.raises(ValueError, match="uvs: values out of the float32 range"):
             smoothffd.Mesh(mesh.positions, (mesh.corner_vertices, mesh.face_offsets),
                            uvs=np.full((len(mesh.corner_vertices), 2), 1e39))
+
+
+_THREADS_UNDER_LIMIT = r"""
+import resource, sys
+sys.path.insert(0, sys.argv[1])
+import numpy as np, smoothffd, workloads
+mesh = workloads.torus(167, 140)   # W1: 2.7 M output vertices at level 10, so 2663 chunks
+lo, hi = mesh.positions.min(0) - 0.05, mesh.positions.max(0) + 0.05
+lat = smoothffd.BSplineLattice.identity(lo, hi, shape=(5, 5, 5), degree=(2, 2, 2))
+pts = lat.control_points + 0.03 * np.random.default_rng(1).standard_normal(lat.control_points.shape)
+ref = smoothffd.Deformer(mesh, lat, level=10, device="cpu", threads=2).deform(pts)
+# 6 GiB of address space: room for the frame, not for 2663 thread stacks of 8 MiB.
+resource.setrlimit(resource.RLIMIT_AS, (6 << 30, 6 << 30))
+res = smoothffd.Deformer(mesh, lat, level=10, device="cpu", threads=4096).deform(pts)
+print("same:", np.array_equal(res.positions, ref.positions)
+      and np.array_equal(res.corner_normals, ref.corner_normals))
+"""
+
+
+def test_more_threads_than_the_system_grants():
+    """threads=4096 under a memory limit: thread creation fails part way; the refused chunks
+    run in the calling thread (it was std::terminate), with the same result bitwise."""
+    import subprocess
+    import sys
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = dict(os.environ, PYTHONPATH=os.path.dirname(os.path.dirname(smoothffd.__file__)))
+    r = subprocess.run([sys.executable, "-c", _THREADS_UNDER_LIMIT, os.path.join(root, "bench")],
+                       capture_output=True, text=True, timeout=300, env=env)
+    assert r.returncode == 0, r.stdout + r.stderr[-2000:]
+    assert "same: True" in r.stdout, r.stdout + r.stderr[-2000:]

@@ -1,10 +1,12 @@
 // Static-chunked parallel loop over [0, n) with plain std::threads.
 //
 // Every element is computed independently from the same inputs, so results are bitwise
-// identical for any thread count (tests/test_determinism.py).
+// identical for any thread count (tests/test_determinism.py), and for any number of threads
+// the system actually grants: a refused thread's chunk runs in the calling thread.
 #pragma once
 
 #include <algorithm>
+#include <system_error>
 #include <thread>
 #include <vector>
 
@@ -18,17 +20,29 @@ inline int default_threads() {
 template <class Fn>
 void parallel_for(long long n, int threads, Fn&& fn) {
   if (n <= 0) return;
-  long long chunks = std::min<long long>(std::max(threads, 1), (n + 1023) / 1024);
+  const long long chunks = std::min<long long>(std::max(threads, 1), (n + 1023) / 1024);
+  auto chunk = [&](long long c) { fn(n * c / chunks, n * (c + 1) / chunks); };
   if (chunks <= 1) {
     fn(0LL, n);
     return;
   }
-  std::vector<std::thread> pool;
-  pool.reserve(chunks - 1);
-  for (long long c = 1; c < chunks; ++c)
-    pool.emplace_back([&, c] { fn(n * c / chunks, n * (c + 1) / chunks); });
-  fn(0LL, n / chunks);
-  for (auto& t : pool) t.join();
+  // Joins whatever was started, also when this thread's share throws.
+  struct Pool {
+    std::vector<std::thread> threads;
+    ~Pool() {
+      for (auto& t : threads) t.join();
+    }
+  } pool;
+  pool.threads.reserve(chunks - 1);
+  long long started = 1;
+  try {
+    for (; started < chunks; ++started) pool.threads.emplace_back([&chunk, started] { chunk(started); });
+  } catch (const std::system_error&) {
+    // The system refused another thread (memory or process limits): the chunks no thread was
+    // started for run here, so the result is the same, only later.
+  }
+  chunk(0);
+  for (long long c = started; c < chunks; ++c) chunk(c);
 }
 
 }  // namespace sffd

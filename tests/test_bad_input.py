@@ -113,3 +113,16 @@ def test_lattice_far_from_mesh_and_huge_values():
     assert np.all(np.isfinite(r.positions))
     shift = r.positions[:42] - mesh.positions
     np.testing.assert_allclose(shift, np.broadcast_to(shift[0], shift.shape), atol=1e-4)
+
+
+@pytest.mark.parametrize("bad", ["degree", "knots", "counts"])
+def test_private_module_refuses_short_per_axis_lists(bad):
+    """The add-on calls _core directly: one value where three (one an axis) are needed was a
+    segfault; it is a ValueError naming the argument."""
+    from smoothffd import _core
+    args = {"degree": [2, 2, 2], "knots": [np.arange(6.0)] * 3, "counts": [3, 3, 3]}
+    args[bad] = args[bad][:1]
+    with pytest.raises(ValueError, match=rf"{bad}: expected 3 values \(one per axis\), got 1"):
+        _core.LatticeSpec.bspline(args["degree"], args["knots"], args["counts"], np.eye(3, 4))
+    with pytest.raises(ValueError, match=r"interpolation: expected 3 values"):
+        _core.LatticeSpec.blender(["BSPLINE"], [3, 3, 3], np.eye(3, 4))

@@ -29,6 +29,15 @@ std::vector<T> to_vector(const Arr<T>& a) {
   return std::vector<T>(a.data(), a.data() + a.size());
 }
 
+// The add-on calls these bindings directly: a per-axis argument must have one entry an axis.
+template <class V>
+const V& per_axis(const V& v, const char* name) {
+  if (v.size() != 3)
+    throw std::invalid_argument(std::string(name) + ": expected 3 values (one per axis), got " +
+                                std::to_string(v.size()));
+  return v;
+}
+
 void set_map(LatticeSpec& spec, const Arr<double>& m) {
   if (m.size() != 12) throw std::invalid_argument("object_to_param: expected a 3 x 4 matrix");
   for (int r = 0; r < 3; ++r)
@@ -112,6 +121,7 @@ PYBIND11_MODULE(_core, m) {
           "bspline",
           [](std::vector<int> degree, std::vector<Arr<double>> knots, std::vector<int> counts,
              Arr<double> object_to_param) {
+            per_axis(degree, "degree"), per_axis(knots, "knots"), per_axis(counts, "counts");
             auto s = std::make_shared<LatticeSpec>();
             for (int a = 0; a < 3; ++a) s->axes[a] = AxisBasis::bspline(degree[a], to_vector(knots[a]), counts[a]);
             set_map(*s, object_to_param);
@@ -121,6 +131,7 @@ PYBIND11_MODULE(_core, m) {
       .def_static(
           "blender",
           [](std::vector<std::string> types, std::vector<int> counts, Arr<double> object_to_param) {
+            per_axis(types, "interpolation"), per_axis(counts, "counts");
             auto s = std::make_shared<LatticeSpec>();
             for (int a = 0; a < 3; ++a) s->axes[a] = AxisBasis::blender(parse_blender_interp(types[a]), counts[a]);
             set_map(*s, object_to_param);

@@ -308,3 +308,71 @@ def test_gzip_round_trip(tmp_path):
     d = io.read_obj(p)
     np.testing.assert_array_equal(d.positions.astype(np.float32), pos)
     np.testing.assert_array_equal(d.uvs.astype(np.float32), uv.reshape(-1, 2))
+
+
+# One reader behaviour: the strict grammar of io.py (_NUM, _INTEGER, lines, blanks).
+sio = _import_pure("io")
+_ODD = {
+    "bom": "\ufeffv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    "form feed before v": "v 0 0 0\nv 1 0 0\nv 0 1 0\n\fv 5 5 5\nf 1 2 3\n",
+    "no-break space in v": "v 0 0 0\nv 1 0 0\nv 0\u00a01 0\nf 1 2 3\n",
+    "index 3-": "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3-\n",
+    "index 4-1": "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 4-1\n",
+    "underscore number": "v 0 0 0\nv 1_000 0 0\nv 0 1 0\nf 1 2 3\n",
+    "arabic-indic digits": "v 0 0 0\nv \u0661 0 0\nv 0 1 0\nf 1 2 3\n",
+    "arabic-indic index": "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 \u0663\n",
+    "crlf and cr": "v 0 0 0\r\nv 1 0 0\rv 0 1 0\r\nf 1 2 3\r\n",
+}
+
+
+@pytest.mark.parametrize("name", sorted(_ODD))
+def test_both_readers_agree(name, tmp_path):
+    """Where the fast reader takes a file the slow one reads the same, and read_obj's answer
+    (data or a ValueError naming the line) does not depend on which reader ran."""
+    text = _ODD[name].lstrip("\ufeff")
+    fast = sio._read_fast(text, "x.obj")
+    try:
+        slow = sio._read_slow(text, "x.obj")
+    except ValueError as e:
+        assert fast is None, f"fast reader accepted what the slow one refuses: {e}"
+        slow = None
+    if fast is not None:
+        for f in ("positions", "corner_vertices", "face_offsets"):
+            assert np.array_equal(getattr(fast, f), getattr(slow, f)), f
+
+
+def test_bom_keeps_the_first_vertex(tmp_path):
+    p = tmp_path / "bom.obj"
+    p.write_bytes(_ODD["bom"].encode("utf-8"))
+    d = sio.read_obj(p)
+    assert len(d.positions) == 3 and np.array_equal(d.positions[0], [0, 0, 0])
+    assert d.corner_vertices.tolist() == [0, 1, 2]
+
+
+@pytest.mark.parametrize("name,needle", [
+    ("index 3-", "non-integer index in face corner '3-'"),
+    ("index 4-1", "non-integer index in face corner '4-1'"),
+    ("underscore number", "non-numeric vertex value '1_000'"),
+    ("arabic-indic digits", "non-numeric vertex value"),
+    ("arabic-indic index", "non-integer index in face corner"),
+    ("no-break space in v", ":3: vertex needs 3 coordinates"),
+])
+def test_strict_syntax_refused_with_the_line(tmp_path, name, needle):
+    p = tmp_path / "odd.obj"
+    p.write_text(_ODD[name], encoding="utf-8")
+    with pytest.raises(ValueError, match=re.escape(needle)):
+        sio.read_obj(p)
+
+
+def test_form_feed_line_is_an_unknown_keyword(tmp_path):
+    p = tmp_path / "ff.obj"
+    p.write_text(_ODD["form feed before v"], encoding="utf-8")
+    assert len(sio.read_obj(p).positions) == 3   # "\fv" is not "v": ignored, as by both readers
+
+
+def test_long_bad_number_is_not_echoed_whole(tmp_path):
+    p = tmp_path / "long.obj"
+    p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 " + "9" * 5000 + "x\nf 1 2 3\n", encoding="utf-8")
+    with pytest.raises(ValueError) as e:
+        sio.read_obj(p)
+    assert len(str(e.value)) < 200, str(e.value)

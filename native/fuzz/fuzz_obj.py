@@ -5,7 +5,8 @@ ValueError (nothing else: no IndexError, TypeError, MemoryError, ...). Consisten
 float64 positions (V, 3); int corner indices in [0, V); face offsets from 0 to C, every face
 with at least 3 corners; normals (C, 3) / uvs (C, 2) finite or None. The data must then be
 accepted by `smoothffd.Mesh` (when the native core is built), and `write_obj` followed by
-`read_obj` must give back the same face structure.
+`read_obj` must give back the same face structure. Differential: wherever the vectorized
+reader accepts a file, the line-by-line reader must give the same arrays.
 
 Two engines:
 - atheris (coverage-guided libFuzzer for Python) when importable, e.g. from build/venv-fuzz
@@ -73,6 +74,7 @@ class Target:
             fh.write(data)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
+            self.compare_readers(data)
             try:
                 d = self.io.read_obj(self.path)
             except ValueError:
@@ -80,6 +82,20 @@ class Target:
                 return
             self.accepted += 1
             self.check(d)
+
+    def compare_readers(self, data):
+        """Differential: where the fast reader takes a file, the slow one reads the same."""
+        text = data.decode("utf-8", errors="replace")
+        if text.startswith("\ufeff"):
+            text = text[1:]
+        fast = self.io._read_fast(text, "x")
+        if fast is None:
+            return
+        slow = self.io._read_slow(text, "x")  # must not raise where the fast one accepted
+        for name in ("positions", "corner_vertices", "face_offsets", "corner_normals", "uvs"):
+            a, b = getattr(fast, name), getattr(slow, name)
+            assert (a is None) == (b is None) and (a is None or np.array_equal(a, b)), \
+                f"the two OBJ readers disagree on {name}"
 
     def check(self, d):
         V = len(d.positions)

@@ -97,6 +97,53 @@ def _error(path, lineno, msg):
     return ValueError(f"{path}:{lineno}: {msg}")
 
 
+# One grammar for both readers: lines end at \n, \r\n or \r; tokens are separated by spaces and
+# tabs; a number is ASCII decimal notation (no "1_000", no other scripts' digits, no "inf" or
+# "nan"); an index is an ASCII integer, optionally negative.
+_NUM = r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
+_NUMBERS = re.compile(rf"(?:{_NUM}(?: {_NUM})*)?")
+_NUMBER = re.compile(_NUM)
+_INTEGERS = re.compile(r"(?:-?[0-9]+(?: -?[0-9]+)*)?")
+_INTEGER = re.compile(r"-?[0-9]+")
+_BLANKS = re.compile(r"[ \t]+")
+# The fast reader takes printable ASCII, tabs and newlines only (and no "_"); anything else goes
+# to the slow reader, which applies the grammar above token by token.
+_PLAIN = bytes(range(0x20, 0x7f)).replace(b"_", b"") + b"\t\n"
+
+
+def _plain(text):
+    return text.isascii() and not text.encode("ascii").translate(None, _PLAIN)
+
+
+def _show(tok, limit=40):
+    """A token as an error message shows it: quoted, cut when long."""
+    return repr(tok if len(tok) <= limit else tok[:limit] + "...")
+
+
+def _lines(text):
+    """The file's lines, as both readers see them."""
+    return text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+
+
+def _tokens(line):
+    line = line.strip(" \t")
+    return _BLANKS.split(line) if line else []
+
+
+def _tokens_per_line_are(lines, n):
+    """Whether every line holds exactly n blank-separated tokens (vectorized for the common
+    single-spaced layout, line by line otherwise)."""
+    joined = "\n".join(lines)
+    if "\t" in joined or "  " in joined or " \n" in joined or "\n " in joined or \
+            joined.startswith(" ") or joined.endswith(" "):
+        return all(len(line.split()) == n for line in lines)
+    b = np.frombuffer(joined.encode("ascii"), dtype=np.uint8)
+    spaces = np.concatenate([[0], np.cumsum(b == 32)])
+    ends = np.concatenate([np.flatnonzero(b == 10), [len(b)]])
+    starts = np.concatenate([[0], ends[:-1] + 1])
+    return bool((spaces[ends] - spaces[starts] == n - 1).all() and (ends > starts).all())
+
+
 def _floats(tokens, lines, per_line, path, what):
     """Convert a flat list of numeric strings to float64 (n, per_line).
 
@@ -105,20 +152,15 @@ def _floats(tokens, lines, per_line, path, what):
     """
     if not tokens:
         return np.zeros((0, per_line))
-    try:
-        arr = np.array(tokens, dtype=np.float64)
-    except ValueError:
-        for i, tok in enumerate(tokens):
-            try:
-                float(tok)
-            except ValueError:
-                msg = f"non-numeric {what} value {tok!r}"
-                raise _error(path, lines[i // per_line], msg) from None
-        raise  # pragma: no cover - numpy and float() disagree
+    if not _NUMBERS.fullmatch(" ".join(tokens)):
+        i = next(i for i, tok in enumerate(tokens) if not _NUMBER.fullmatch(tok))
+        kind = "non-finite" if tokens[i].lower().lstrip("+-") in ("inf", "infinity", "nan") else "non-numeric"
+        raise _error(path, lines[i // per_line], f"{kind} {what} value {_show(tokens[i])}")
+    arr = np.array(tokens, dtype=np.float64)
     bad = ~np.isfinite(arr)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise _error(path, lines[i // per_line], f"non-finite {what} value {tokens[i]!r}")
+        raise _error(path, lines[i // per_line], f"non-finite {what} value {_show(tokens[i])}")
     return arr.reshape(-1, per_line)
 
 
@@ -134,6 +176,8 @@ def _parse_corners_fast(toks):
     joined = " ".join(toks).replace("//", "/0/")
     fields = joined.replace("/", " ").split()
     if len(fields) != int(slashes.sum()) + C:  # e.g. a trailing "1/2/" or a "/" alone
+        return None
+    if not _INTEGERS.fullmatch(" ".join(fields)):  # "3-", "4-1", other scripts' digits
         return None
     try:
         vals = np.array(fields, dtype=np.int64)
@@ -162,6 +206,9 @@ def _parse_uniform_corners(joined, C):
     # Every corner must have exactly this skeleton: strip the digits and compare the rest.
     if joined.translate(_DIGITS) != " ".join([layout] * C):
         return None
+    # ... and every field must be an integer ("3-" or "4-1" pass the skeleton test).
+    if "-" in joined and not _INTEGERS.fullmatch(joined.replace("//", " ").replace("/", " ")):
+        return None
     if layout == "//":
         joined = joined.replace("//", "/0/")  # 0 is never a valid index: it marks "absent"
     with warnings.catch_warnings():  # fromstring warns (and stops) on junk: we count instead
@@ -180,17 +227,17 @@ def _parse_corners_slow(toks, corner_line, path):
     for c, tok in enumerate(toks):
         parts = tok.split("/")
         if len(parts) > 3 or parts[0] == "":
-            raise _error(path, corner_line(c), f"malformed face corner {tok!r}")
+            raise _error(path, corner_line(c), f"malformed face corner {_show(tok)}")
         for s, p in enumerate(parts):
             if p == "":
                 continue
+            if not _INTEGER.fullmatch(p):
+                msg = f"non-integer index in face corner {_show(tok)}"
+                raise _error(path, corner_line(c), msg)
             try:
                 out[c, s] = int(p)
-            except ValueError:
-                msg = f"non-integer index in face corner {tok!r}"
-                raise _error(path, corner_line(c), msg) from None
             except OverflowError:  # beyond int64 (found by native/fuzz/fuzz_obj.py)
-                msg = f"index out of range in face corner {tok!r}"
+                msg = f"index out of range in face corner {_show(tok)}"
                 raise _error(path, corner_line(c), msg) from None
     return out
 
@@ -208,6 +255,8 @@ def read_obj(path) -> ObjData:
     path = os.fspath(path)
     with _open(path, "r", encoding="utf-8", errors="replace") as fh:
         text = fh.read()
+    if text.startswith("\ufeff"):  # a UTF-8 byte order mark is not part of the first line
+        text = text[1:]
     # Two readers: a vectorized one for the common, clean case, and a line-by-line one that
     # handles every oddity and names the line of an error. The fast one gives up (None) on
     # anything unusual, so both always agree.
@@ -226,9 +275,11 @@ _DIGITS = str.maketrans("", "", "0123456789-")
 def _read_fast(text, path):
     """Regex + numpy reader; returns None whenever it is not sure (the slow path decides)."""
     if "#" in text:
-        text = re.sub(r"#[^\n]*", "", text)
+        text = re.sub(r"#[^\n\r]*", "", text)
     if "\r" in text:
         text = text.replace("\r\n", "\n").replace("\r", "\n")
+    if not _plain(text):
+        return None
     text = "\n" + text + "\n"
     if any(b in text for b in _FAST_BAIL):
         return None
@@ -236,7 +287,9 @@ def _read_fast(text, path):
     def grab(kw, ncols, pad=None):
         lines = re.findall(r"\n%s[ \t]([^\n]*)" % kw, text)
         toks = " ".join(lines).split()
-        if len(toks) != ncols * len(lines):
+        # Exactly ncols tokens on every line (a matching total alone is not enough: "v 1 2 3 4 5"
+        # followed by "v 6" would shift every coordinate after it).
+        if lines and not _tokens_per_line_are(lines, ncols):
             counts = set(map(len, map(str.split, lines)))
             if len(counts) != 1 or min(counts) < (ncols if pad is None else 1):
                 return None
@@ -311,10 +364,10 @@ def _read_slow(text, path):
     # Element counts at each face: negative indices are relative to these.
     f_nv, f_nvt, f_nvn = [], [], []
 
-    for lineno, line in enumerate(text.splitlines(), 1):
+    for lineno, line in enumerate(_lines(text), 1):
         if "#" in line:
             line = line[: line.index("#")]
-        parts = line.split()
+        parts = _tokens(line)
         if not parts:
             continue
         key = parts[0]

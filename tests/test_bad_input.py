@@ -126,3 +126,56 @@ def test_private_module_refuses_short_per_axis_lists(bad):
         _core.LatticeSpec.bspline(args["degree"], args["knots"], args["counts"], np.eye(3, 4))
     with pytest.raises(ValueError, match=r"interpolation: expected 3 values"):
         _core.LatticeSpec.blender(["BSPLINE"], [3, 3, 3], np.eye(3, 4))
+
+
+def _tri_mesh(**kw):
+    return smoothffd.Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]], **kw)
+
+
+def _box():
+    return smoothffd.BSplineLattice.identity([-0.1, -0.1, -0.1], [1.1, 1.1, 0.1], shape=(3, 3, 3),
+                                             degree=(2, 2, 2))
+
+
+@pytest.mark.parametrize("positions", [
+    np.zeros((3, 3), dtype=complex), np.zeros((3, 3), dtype=bool),
+    np.zeros((3, 3), dtype="datetime64[s]"), np.zeros((3, 3), dtype="timedelta64[s]"),
+    [["0", "0", "0"], ["1", "0", "0"], ["0", "1", "0"]]])
+def test_positions_of_other_kinds_are_refused(positions):
+    with pytest.raises(TypeError, match="positions: expected real numbers"):
+        smoothffd.Mesh(positions, [[0, 1, 2]])
+
+
+@pytest.mark.parametrize("level", [True, False, np.bool_(True)])
+def test_level_must_not_be_a_bool(level):
+    with pytest.raises(TypeError, match="level: expected an integer"):
+        smoothffd.Deformer(_tri_mesh(), _box(), level=level)
+
+
+@pytest.mark.parametrize("normals", ["no", 0, 1, None])
+def test_normals_flag_must_be_a_bool(normals):
+    d = smoothffd.Deformer(_tri_mesh(), _box(), level=2, device="cpu")
+    with pytest.raises(TypeError, match="normals: expected True or False"):
+        d.deform(normals=normals)
+
+
+@pytest.mark.parametrize("w", [[0.5, 1.5, 0.0], [-0.1, 0.5, 0.5]])
+def test_vertex_weights_outside_0_1(w):
+    with pytest.raises(ValueError, match=r"vertex_weights: must lie in \[0, 1\]"):
+        _tri_mesh(vertex_weights=w)
+
+
+def test_out_arrays_that_alias_are_refused():
+    d = smoothffd.Deformer(_tri_mesh(), _box(), level=2, device="cpu")
+    res = d.deform()
+    P, T = len(res.positions), len(res.corner_normals)
+    shared = np.zeros(max(3 * P, 9 * T), dtype=np.float32)
+    alias = res._replace(positions=shared[: 3 * P].reshape(P, 3),
+                         corner_normals=shared[: 9 * T].reshape(T, 3, 3)) \
+        if hasattr(res, "_replace") else None
+    if alias is None:
+        import dataclasses
+        alias = dataclasses.replace(res, positions=shared[: 3 * P].reshape(P, 3),
+                                    corner_normals=shared[: 9 * T].reshape(T, 3, 3))
+    with pytest.raises(ValueError, match="out: its positions and corner_normals share memory"):
+        d.deform(out=alias)

@@ -14,6 +14,12 @@ def float_array(value, name, shape=None, dtype=np.float64, allow_nonfinite=False
     if value is None:
         raise TypeError(f"{name}: expected an array, got None")
     try:
+        src = np.asarray(value)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name}: expected a numeric array ({exc})") from None
+    if src.dtype.kind in "bcmMUSV":  # bool, complex, datetime, timedelta, text, records
+        raise TypeError(f"{name}: expected real numbers, got dtype {src.dtype}")
+    try:
         with np.errstate(over="ignore"):  # an overflowing cast is reported below, by name
             arr = np.array(value, dtype=dtype, copy=True, order="C")
     except (TypeError, ValueError) as exc:
@@ -71,7 +77,9 @@ def int_triple(value, name, low, high):
         raise ValueError(f"{name}: expected three values, got {len(items)}")
     out = []
     for v in items:
-        if isinstance(v, bool) or not isinstance(v, numbers.Integral):
+        if isinstance(v, (bool, np.bool_)):
+            raise TypeError(f"{name}: expected integers, got {v!r}")
+        if not isinstance(v, numbers.Integral):
             if isinstance(v, numbers.Real) and float(v).is_integer():
                 v = int(v)
             else:
@@ -83,7 +91,9 @@ def int_triple(value, name, low, high):
 
 
 def positive_int(value, name, low=1, high=None):
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+    if isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name}: expected an integer, got {value!r}")
+    if not isinstance(value, numbers.Integral):
         if isinstance(value, numbers.Real) and float(value).is_integer():
             value = int(value)
         else:
@@ -102,3 +112,10 @@ def finite_float(value, name):
     if not np.isfinite(value):
         raise ValueError(f"{name}: must be finite, got {value}")
     return value
+
+
+def flag(value, name):
+    """True or False, nothing that merely converts to one ('no' is truthy)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name}: expected True or False, got {value!r}")
+    return bool(value)

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import _core
-from ._validate import positive_int
+from ._validate import flag, positive_int
 from .lattice import BlenderLattice, BSplineLattice, _Lattice
 from .mesh import Mesh
 
@@ -175,7 +175,7 @@ class Deformer:
         left as they were.
         """
         with self._lock:
-            return self._deform(lattice_or_points, out, bool(normals))
+            return self._deform(lattice_or_points, out, flag(normals, "normals"))
 
     def _deform(self, lattice_or_points, out=None, normals=True):
         lat = lattice_or_points
@@ -204,6 +204,9 @@ class Deformer:
                 a = getattr(out, name)
                 if isinstance(a, np.ndarray) and a.shape == shape and (normals or name == "positions"):
                     bufs[name] = a
+            if len(bufs) == 2 and np.shares_memory(bufs["positions"], bufs["corner_normals"]):
+                raise ValueError("out: its positions and corner_normals share memory; each frame "
+                                 "writes both, so they must be separate arrays")
         try:
             positions, corner_normals, stages = self._evaluate(values, bufs, normals)
         except (RuntimeError, MemoryError) as exc:

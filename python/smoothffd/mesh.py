@@ -51,6 +51,10 @@ class Mesh:
         if vertex_weights is not None:
             self.vertex_weights = float_array(vertex_weights, "vertex_weights", shape=(V,),
                                               dtype=np.float32)
+            w = self.vertex_weights
+            if w.size and (w.min() < 0 or w.max() > 1):
+                raise ValueError(f"vertex_weights: must lie in [0, 1] (a deformation factor), got "
+                                 f"values from {w.min():.6g} to {w.max():.6g}")
 
     @property
     def vertex_count(self):

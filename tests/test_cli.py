@@ -129,7 +129,7 @@ def test_info_on_mesh_and_lattice(capsys):
         (["info", "{tmp}/bad.obj"], r"bad\.obj:3: face needs at least 3 corners"),
         (["info", "{tmp}/bad.json"], r"bad\.json: key 'version'"),
         (["make-lattice", "--box", 0, 0, 0, 1, 1, 1, "--shape", 2, 2, 2, "-o", "{tmp}/x.json"],
-         r"key 'shape\[0\]': degree 2 needs at least 3 points"),
+         r"--shape: degree 2 needs at least 3 points on axis x, got 2"),
         (["make-lattice", "--box", 0, 0, 0, 1, -1, 1, "-o", "{tmp}/x.json"], "--box"),
         (["make-lattice", "--bbox-of", "{tmp}/bad.obj", "-o", "{tmp}/x.json"], r"bad\.obj:3"),
     ],
@@ -246,3 +246,50 @@ def test_deform_blender_lattice_and_error_report(core, tmp_path, capsys):
     src = io.read_obj(DATA / "vase.obj").positions
     want = lattice.evaluate(src)[0]
     assert metrics.geometry_error(io.read_obj(out).positions[: len(src)], want).max < 1e-5
+
+
+# ---------------------------------------------------------------- one clear line, no traceback
+
+@pytest.mark.parametrize("argv,needle", [
+    (["--degree", 9, 9, 9], "--degree: each degree must be between 1 and 5, got 9"),
+    (["--shape", 3, 3, 3, "--degree", 3, 3, 3], "--shape: degree 3 needs at least 4 points on axis x, got 3"),
+])
+def test_make_lattice_explains_bad_shape_and_degree(argv, needle, tmp_path, capsys):
+    rc, _, err = run_main(["make-lattice", "--box", 0, 0, 0, 1, 1, 1, *argv, "-o", tmp_path / "l.json"], capsys)
+    assert rc == 2 and needle in err.strip().splitlines()[-1] and "Traceback" not in err, err
+    assert not (tmp_path / "l.json").exists()
+
+
+@pytest.mark.parametrize("doc,needle", [
+    ('{"format": "smoothffd-lattice", "version": 1, "kind": ["bspline"], "shape": 3}',
+     "'kind': expected 'bspline' or 'blender'"),
+    ('{"format": "smoothffd-lattice", "version": 1, "kind": "blender", "shape": [1, 1, 1], "points": [[1'
+     + "0" * 400 + ', 0, 0]]}', "'points[0]': expected [x, y, z] finite numbers"),
+])
+def test_lattice_json_odd_values_are_clear_errors(doc, needle, tmp_path, capsys):
+    p = tmp_path / "l.json"
+    p.write_text(doc)
+    rc, _, err = run_main(["info", p], capsys)
+    last = err.strip().splitlines()[-1]
+    assert rc == 2 and needle in last and "Traceback" not in err and len(last) < 300, err[-500:]
+
+
+def test_truncated_gzip_obj_is_a_clear_error(tmp_path, capsys):
+    import gzip
+    whole = gzip.compress((DATA / "vase.obj").read_bytes())
+    p = tmp_path / "cut.obj.gz"
+    p.write_bytes(whole[: len(whole) // 2])
+    rc, _, err = run_main(["info", p], capsys)
+    assert rc == 2 and "damaged or truncated gzip file" in err and "Traceback" not in err, err[-500:]
+
+
+def test_errors_on_an_open_mesh(core, tmp_path, capsys):
+    """--errors on a mesh with a boundary: geometry and normal errors, no volume (it was a
+    ZeroDivisionError traceback)."""
+    p = tmp_path / "open.obj"
+    p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 4 3\n")
+    lat = tmp_path / "l.json"
+    assert run_main(["make-lattice", "--bbox-of", p, "-o", lat], capsys)[0] == 0
+    rc, _, err = run_main(["deform", p, "--lattice", lat, "-o", tmp_path / "o.obj", "--level", 2,
+                           "--errors"], capsys)
+    assert rc == 0 and "no volume error (the mesh is not closed)" in err, err[-800:]

@@ -209,11 +209,15 @@ def cmd_deform(args, progress):
         from . import metrics
 
         with progress.stage("check") as note:
-            e = metrics.reference_errors(res, lattice)
+            # A volume needs a closed surface: an open mesh gets the other measures only.
+            closed = metrics.is_watertight(res.triangles)
+            e = metrics.reference_errors(res, lattice, closed=closed)
             g, n = e["geometry"], e["normal"]
+            volume = (f"volume error {e['volume_error']:.3g}" if closed and e["reference_volume"]
+                      else "no volume error (the mesh is not closed)")
             note["detail"] = (f"vs exact FFD of the flat input: geometry mean {g.mean:.3g} "
                               f"max {g.max:.3g}; normal mean {n.mean:.3g} max {n.max:.3g} deg; "
-                              f"volume error {e['volume_error']:.3g}")
+                              f"{volume}")
     if args.stats:
         stats = dict(res.stats)
         stats["cli_seconds"] = progress.times
@@ -232,6 +236,13 @@ def cmd_make_lattice(args, progress):
         if (hi <= lo).any():
             raise UserError("--box: each max must exceed its min")
         box_min, box_max = lo, hi
+    if args.kind == "bspline":  # what the lattice reader accepts (lattice_json.parse_lattice)
+        for a, (n, d) in enumerate(zip(args.shape, args.degree)):
+            if not 1 <= d <= 5:
+                raise UserError(f"--degree: each degree must be between 1 and 5, got {d}")
+            if n < d + 1:
+                raise UserError(f"--shape: degree {d} needs at least {d + 1} points on axis "
+                                f"{'xyz'[a]}, got {n}")
     mode, amount = None, 0.0
     for m in ("twist", "bend", "bulge"):
         if getattr(args, m) is not None:

@@ -16,6 +16,7 @@ import io as stdio
 import os
 import re
 import tempfile
+import zlib
 import warnings
 from typing import NamedTuple, Optional
 
@@ -253,8 +254,11 @@ def read_obj(path) -> ObjData:
     computes smooth ones) with a warning; if only some have ``vt``, the others get UV (0, 0).
     """
     path = os.fspath(path)
-    with _open(path, "r", encoding="utf-8", errors="replace") as fh:
-        text = fh.read()
+    try:
+        with _open(path, "r", encoding="utf-8", errors="replace") as fh:
+            text = fh.read()
+    except (EOFError, gzip.BadGzipFile, zlib.error) as e:
+        raise ValueError(f"{path}: damaged or truncated gzip file ({e})") from None
     if text.startswith("\ufeff"):  # a UTF-8 byte order mark is not part of the first line
         text = text[1:]
     # Two readers: a vectorized one for the common, clean case, and a line-by-line one that

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import reprlib
 import os
 
 import numpy as np
@@ -42,7 +43,12 @@ class _Err:
 
 
 def _is_number(x):
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+    if not isinstance(x, (int, float)) or isinstance(x, bool):
+        return False
+    try:
+        return math.isfinite(x)
+    except OverflowError:  # an integer beyond float range (JSON allows any number of digits)
+        return False
 
 
 def _int_triple(doc, key, err, lo, hi, default=None):
@@ -51,7 +57,7 @@ def _int_triple(doc, key, err, lo, hi, default=None):
         val = [val] * 3  # one number means "the same on every axis"
     if (not isinstance(val, list) or len(val) != 3
             or not all(isinstance(v, int) and not isinstance(v, bool) for v in val)):
-        raise err(key, f"expected 3 integers, got {val!r}")
+        raise err(key, f"expected 3 integers, got {reprlib.repr(val)}")
     for a, v in enumerate(val):
         if not lo <= v <= hi:
             raise err(f"{key}[{a}]", f"expected {lo}..{hi}, got {v}")
@@ -63,7 +69,7 @@ def _vector(doc, key, err, n=3, optional=False):
     if val is None and optional:
         return None
     if not isinstance(val, list) or len(val) != n or not all(_is_number(v) for v in val):
-        raise err(key, f"expected {n} finite numbers, got {val!r}")
+        raise err(key, f"expected {n} finite numbers, got {reprlib.repr(val)}")
     return np.array(val, dtype=np.float64)
 
 
@@ -77,7 +83,7 @@ def _points(doc, key, err, shape):
         raise err(key, f"expected {n} points for shape {list(shape)}, got {len(val)}")
     for i, p in enumerate(val):
         if not isinstance(p, list) or len(p) != 3 or not all(_is_number(v) for v in p):
-            raise err(f"{key}[{i}]", f"expected [x, y, z] finite numbers, got {p!r}")
+            raise err(f"{key}[{i}]", f"expected [x, y, z] finite numbers, got {reprlib.repr(p)}")
     return np.array(val, dtype=np.float64).reshape(*shape, 3)
 
 
@@ -96,18 +102,18 @@ def parse_lattice(doc, source=None):
     if not isinstance(doc, dict):
         raise err("(top level)", f"expected a JSON object, got {type(doc).__name__}")
     if doc.get("format") != FORMAT:
-        raise err("format", f"expected {FORMAT!r}, got {doc.get('format')!r}")
+        raise err("format", f"expected {reprlib.repr(FORMAT)}, got {reprlib.repr(doc.get('format'))}")
     version = doc.get("version")
     if not isinstance(version, int) or isinstance(version, bool):
-        raise err("version", f"expected an integer, got {version!r}")
+        raise err("version", f"expected an integer, got {reprlib.repr(version)}")
     if version != VERSION:
         raise err("version", f"version {version} is not supported (this reader knows {VERSION})")
     kind = doc.get("kind")
-    if kind not in _KEYS:
-        raise err("kind", f"expected 'bspline' or 'blender', got {kind!r}")
+    if not isinstance(kind, str) or kind not in _KEYS:
+        raise err("kind", f"expected 'bspline' or 'blender', got {reprlib.repr(kind)}")
     unknown = sorted(set(doc) - _KEYS[kind])
     if unknown:  # catches typos such as "knot" that would otherwise be silently ignored
-        raise err(unknown[0], f"unknown key for kind {kind!r}")
+        raise err(unknown[0], f"unknown key for kind {reprlib.repr(kind)}")
     for key in ("name", "comment"):
         if key in doc and not isinstance(doc[key], str):
             raise err(key, "expected a string")
@@ -157,7 +163,7 @@ def parse_lattice(doc, source=None):
     if (not isinstance(interp, list) or len(interp) != 3
             or any(t not in INTERPOLATIONS for t in interp)):
         raise err("interpolation", f"expected a name or 3 names from {list(INTERPOLATIONS)}, "
-                                   f"got {doc.get('interpolation')!r}")
+                                   f"got {reprlib.repr(doc.get('interpolation'))}")
     m = doc.get("lattice_to_object")
     if m is None:
         m = np.eye(4)
@@ -172,7 +178,7 @@ def parse_lattice(doc, source=None):
             raise err("lattice_to_object", "the last row must be [0, 0, 0, 1]")
     strength = doc.get("strength", 1.0)
     if not _is_number(strength):
-        raise err("strength", f"expected a finite number, got {strength!r}")
+        raise err("strength", f"expected a finite number, got {reprlib.repr(strength)}")
     return kind, dict(rest_points=rest, points=points, interpolation=tuple(interp),
                       lattice_to_object=m, strength=float(strength))
 

@@ -85,6 +85,8 @@ def signed_volume(positions, triangles):
 
 def volume_error(volume, reference_volume):
     """Relative volume error |v' - v| / |v| (the paper's Table 4)."""
+    if reference_volume == 0:
+        raise ValueError("reference_volume: 0 (an open or flat surface has no volume to compare)")
     return abs(volume - reference_volume) / abs(reference_volume)
 
 

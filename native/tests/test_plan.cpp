@@ -202,3 +202,24 @@ TEST(Plan, RejectsInvalidInput) {
   m.vertex_weight.assign(2, 1.0f);
   expect_bad(m);
 }
+
+// The evaluators run in float: a lattice whose knot spans or map cannot be represented there
+// (here: knots 1e-40 apart, an inverse span of 1e40) is refused by name, never NaN output
+// (native/fuzz/corpus/plan/regress_nan_tiny_span.bin, found by fuzz_plan).
+TEST(Plan, LatticeBeyondFloatRangeIsRefused) {
+  InputMesh m = tri_mesh({0.1, 0.1, 0.1, 0.9, 0.1, 0.1, 0.1, 0.9, 0.1}, {0, 1, 2});
+  LatticeSpec s = bspline_box(2, 4);
+  std::vector<double> tiny = clamped_knots(2, 4);
+  for (double& k : tiny) k *= 1e-40;
+  s.axes[0] = AxisBasis::bspline(2, tiny, 4);
+  s.object_to_param[0][0] = 1e-40;
+  PlanOptions opt;
+  opt.level = 2;
+  try {
+    build_plan(m, s, opt);
+    FAIL() << "a lattice beyond float range was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("axis u"), std::string::npos) << e.what();
+  }
+  EXPECT_NO_THROW(build_plan(m, bspline_box(2, 4), opt));
+}

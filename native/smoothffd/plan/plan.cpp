@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 #include "smoothffd/core/parallel.hpp"
 #include "smoothffd/mesh/triangulate.hpp"
@@ -212,6 +213,29 @@ void build_render_vertices(Plan& plan, int SV, const TessellationTables& tess, c
 
 uint32_t pack_pieces(const int p[3]) { return uint32_t(p[0]) | uint32_t(p[1]) << 10 | uint32_t(p[2]) << 20; }
 
+// The evaluators run in float: every value of the lattice tables (step 7) must be a finite
+// float, or the output is NaN. Refused here, before any work, saying which axis and why.
+void check_float_range(const LatticeSpec& lattice) {
+  const char* axis = "uvw";
+  auto finite_float = [](double x) { return std::isfinite(x) && std::isfinite((float)x); };
+  for (int a = 0; a < 3; ++a) {
+    for (const AxisPiece& pc : lattice.axes[a].pieces()) {
+      bool ok = finite_float(pc.origin) && finite_float(1.0 / pc.scale);
+      for (int k = 0; k < kMaxTerms && ok; ++k)
+        for (int q = 0; q < kMaxTerms && ok; ++q) ok = finite_float(pc.coef[k][q]);
+      if (!ok)
+        throw std::invalid_argument(std::string("lattice: axis ") + axis[a] + " has a knot span of width " +
+                                    std::to_string(pc.scale) + " at " + std::to_string(pc.origin) +
+                                    ", beyond what float evaluation can represent (spans and knots "
+                                    "between about 1e-30 and 1e30)");
+    }
+    for (int c = 0; c < 4; ++c)
+      if (!finite_float(lattice.object_to_param[a][c]))
+        throw std::invalid_argument("lattice: the object-to-parameter map is beyond float range "
+                                    "(a lattice box too small or too large)");
+  }
+}
+
 }  // namespace
 
 size_t Plan::bytes() const {
@@ -235,6 +259,7 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   for (int a = 0; a < 3; ++a)
     if (lattice.axes[a].pieces().size() > 1023)
       throw std::invalid_argument("lattice: too many knot spans on one axis (at most 1023)");
+  check_float_range(lattice);
   Plan plan;
   StageTimer timer{plan};
   const int V = (int)(mesh.positions.size() / 3);

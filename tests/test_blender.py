@@ -120,7 +120,7 @@ def blender_env(tmp_path):
                "BLENDER_USER_CONFIG": str(profile / "config"),
                "BLENDER_USER_EXTENSIONS": str(profile / "extensions")}
         if installed_mode():
-            env.update({"SFFD_TEST_ADDON_ZIP": _zip_for(runner), "SMOOTHFFD_PYTHONPATH": None,
+            env.update({"SFFD_TEST_ADDON_ZIP": _zip_for(runner),
                         "PYTHONPATH": _strip_source(os.environ.get("PYTHONPATH"))})
         return env
     return env_for
@@ -256,7 +256,7 @@ def test_install_zip(runner, addon_zip, blender_env):
     """The zip installs (legacy add-on on 3.4, extension on 4.2+) and runs its bundled core."""
     env = blender_env(runner)
     zip_path = addon_zip or env["SFFD_TEST_ADDON_ZIP"]
-    env.update({"SFFD_TEST_ADDON_ZIP": None, "SMOOTHFFD_PYTHONPATH": None,
+    env.update({"SFFD_TEST_ADDON_ZIP": None,
                 "PYTHONPATH": _strip_source(os.environ.get("PYTHONPATH"))})
     rc, out = _run(blender_cmd(runner, "check_install.py", zip_path), extra_env=env)
     assert rc == 0 and " passed, 0 failed" in out, _summary(out) + out[-2000:]

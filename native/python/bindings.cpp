@@ -94,6 +94,30 @@ py::tuple run_evaluator(Evaluator& ev, const Arr<float>& D, const py::object& ou
   return py::make_tuple(pos, nrm, times_dict(t));
 }
 
+// The compact layout: (positions (N, 3), render-vertex normals (R, 3) or None, stage times).
+// normals=False: positions only (the out normals are neither needed nor touched).
+py::tuple run_compact(Evaluator& ev, const Arr<float>& D, const py::object& out_positions,
+                      const py::object& out_normals, bool normals) {
+  const Plan& plan = ev.plan();
+  check_values(plan, D);
+  py::array_t<float> pos = output_array(out_positions, {(py::ssize_t)plan.output_vertices, 3}, "positions");
+  py::object nrm_obj = py::none();
+  float* n = nullptr;
+  if (normals) {
+    py::array_t<float> nrm = output_array(out_normals, {(py::ssize_t)plan.render_vertices, 3}, "normals");
+    n = nrm.mutable_data();
+    nrm_obj = nrm;
+  }
+  const float* d = D.data();
+  float* p = pos.mutable_data();
+  StageTimes t;
+  {
+    py::gil_scoped_release release;
+    t = ev.evaluate_compact(d, p, n);
+  }
+  return py::make_tuple(pos, nrm_obj, times_dict(t));
+}
+
 // Positions only: (positions, stage times). `eval(D, positions)` runs the backend's
 // positions-only frame; validation and out-buffer reuse as run_evaluator's.
 template <class Ev, class Fn>
@@ -250,6 +274,14 @@ PYBIND11_MODULE(_core, m) {
              return run_evaluator(ev, D, positions, corner_normals);
            },
            py::arg("values"), py::arg("positions") = py::none(), py::arg("corner_normals") = py::none())
+      .def("evaluate_compact",
+           [](CpuEvaluator& ev, Arr<float> D, py::object positions, py::object normals, bool with_normals) {
+             return run_compact(ev, D, positions, normals, with_normals);
+           },
+           py::arg("values"), py::arg("positions") = py::none(), py::arg("normals") = py::none(),
+           py::arg("with_normals") = true,
+           "(positions (N, 3), render-vertex normals (R, 3) or None, stage times): the compact "
+           "layout (Plan.render_vertices() for its topology)")
       .def("evaluate_positions",
            [](CpuEvaluator& ev, Arr<float> D, py::object positions) {
              return run_positions(ev, D, positions, [&](const float* d, float* p) {
@@ -304,6 +336,14 @@ PYBIND11_MODULE(_core, m) {
              return run_evaluator(ev, D, positions, corner_normals);
            },
            py::arg("values"), py::arg("positions") = py::none(), py::arg("corner_normals") = py::none())
+      .def("evaluate_compact",
+           [](CudaEvaluator& ev, Arr<float> D, py::object positions, py::object normals, bool with_normals) {
+             return run_compact(ev, D, positions, normals, with_normals);
+           },
+           py::arg("values"), py::arg("positions") = py::none(), py::arg("normals") = py::none(),
+           py::arg("with_normals") = true,
+           "(positions (N, 3), render-vertex normals (R, 3) or None, stage times): the compact "
+           "layout (Plan.render_vertices() for its topology)")
       .def("evaluate_positions",
            [](CudaEvaluator& ev, Arr<float> D, py::object positions) {
              return run_positions(ev, D, positions, [&](const float* d, float* p) {
@@ -327,16 +367,6 @@ PYBIND11_MODULE(_core, m) {
            },
            py::arg("values"), "runs the frame on the device only; returns stage times (ms, CUDA events)")
       .def("poison", [](CudaEvaluator& ev) { ev.poison(); })
-      .def("download_compact",
-           [](CudaEvaluator& ev) {
-             const Plan& plan = ev.plan();
-             py::array_t<float> pos({(py::ssize_t)plan.output_vertices, (py::ssize_t)3});
-             py::array_t<float> nrm({(py::ssize_t)plan.render_vertices, (py::ssize_t)3});
-             ev.download_compact(pos.mutable_data(), nrm.mutable_data());
-             return py::make_tuple(pos, nrm);
-           },
-           "(positions (N, 3), render-vertex normals (R, 3)): the compact device output of the last "
-           "frame (Plan.render_vertices() for the topology)")
       .def("benchmark",
            [](CudaEvaluator& ev, Arr<float> D, int iters) {
              const Plan& plan = ev.plan();

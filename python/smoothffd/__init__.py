@@ -10,7 +10,7 @@ without the native module; everything else needs it and says how to build it whe
 import sys
 
 __version__ = "0.1.0"
-__all__ = ["BSplineLattice", "BlenderLattice", "Mesh", "Deformer", "Result", "deform",
+__all__ = ["BSplineLattice", "BlenderLattice", "Mesh", "Deformer", "Result", "CompactResult", "deform",
            "cuda_status"]
 
 try:
@@ -28,6 +28,6 @@ except ImportError as exc:  # the pure-Python submodules still work
             raise ImportError(_CORE_ERROR)
         raise AttributeError(f"module 'smoothffd' has no attribute {name!r}")
 else:
-    from .deform import Deformer, Result, cuda_status, deform  # noqa: F401
+    from .deform import CompactResult, Deformer, Result, cuda_status, deform  # noqa: F401
     from .lattice import BlenderLattice, BSplineLattice  # noqa: F401
     from .mesh import Mesh  # noqa: F401

@@ -34,6 +34,37 @@ class Result:
     stats: dict = field(default_factory=dict)
 
 
+@dataclass
+class CompactResult:
+    """Output of one deformation in the compact layout (see docs/api.md).
+
+    Render vertices: an output vertex duplicated only where its normals split (sharp edges),
+    so a renderer's vertex buffer is `positions[render_vertex]` with `normals`, indexed by
+    `render_triangles`. Only `positions` and `normals` change from frame to frame; the
+    topology arrays are made once per plan (read-only, shared between results).
+    """
+
+    positions: np.ndarray        # (N, 3) float32 welded output vertices, as Result.positions
+    normals: object              # (R, 3) float32 unit normal per render vertex; None (normals=False)
+    render_vertex: np.ndarray    # (R,) int32: the output vertex (position) of each render vertex
+    render_triangles: np.ndarray # (T, 3) int32: triangles in render vertices
+    triangles: np.ndarray        # (T, 3) int32: the same triangles in output vertices
+    uvs: object                  # (T, 3, 2) float32 or None
+    face_index: np.ndarray       # (T,) int32
+    rest_positions: np.ndarray   # (N, 3) float32
+    sharp_edges: np.ndarray      # (K, 2) int32
+    stats: dict = field(default_factory=dict)
+
+    def corner_normals(self):
+        """(T, 3, 3) per-corner normals, Result.corner_normals' layout (a new array)."""
+        if self.normals is None:
+            return None
+        return self.normals[self.render_triangles]
+
+
+_LAYOUTS = ("corners", "compact")
+
+
 def cuda_status():
     """(usable, message): whether the CUDA evaluator can run here, and if not, why."""
     return tuple(_core.cuda_status())
@@ -146,14 +177,16 @@ class Deformer:
     def _static_arrays(self):
         if self._static is None:
             p = self.plan
+            render_vertex, render_triangles = p.render_vertices()
             self._static = dict(triangles=p.triangles(), face_index=p.face_index(), uvs=p.uvs(),
-                                rest_positions=p.rest_positions(), sharp_edges=p.sharp_edges())
+                                rest_positions=p.rest_positions(), sharp_edges=p.sharp_edges(),
+                                render_vertex=render_vertex, render_triangles=render_triangles)
             for a in self._static.values():
                 if a is not None:
                     a.setflags(write=False)
         return self._static
 
-    def deform(self, lattice_or_points=None, out=None, normals=True):
+    def deform(self, lattice_or_points=None, out=None, normals=True, layout="corners"):
         """Deform with new control values.
 
         Pass a lattice (replanned automatically if its structure differs from the planned
@@ -173,11 +206,18 @@ class Deformer:
         (docs/benchmarks.md). On CUDA the device computes
         everything as usual and only the normals' copy back is skipped. `out`'s normals are
         left as they were.
-        """
-        with self._lock:
-            return self._deform(lattice_or_points, out, flag(normals, "normals"))
 
-    def _deform(self, lattice_or_points, out=None, normals=True):
+        layout: "corners" returns a Result (normals per triangle corner, (T, 3, 3)); "compact"
+        a CompactResult: normals once per render vertex (R, 3), duplicated only where they
+        split, the layout renderers and Blender take. Much less memory to write and move
+        (docs/benchmarks.md); `out` is then a previous CompactResult.
+        """
+        if layout not in _LAYOUTS:
+            raise ValueError(f"layout: expected one of {_LAYOUTS}, got {layout!r}")
+        with self._lock:
+            return self._deform(lattice_or_points, out, flag(normals, "normals"), layout)
+
+    def _deform(self, lattice_or_points, out=None, normals=True, layout="corners"):
         lat = lattice_or_points
         if lat is None:
             lat = self.lattice
@@ -193,27 +233,32 @@ class Deformer:
             self._plan_for(lat)
         self.lattice = lat
         t0 = time.perf_counter()
+        compact = layout == "compact"
+        nname = "normals" if compact else "corner_normals"
         bufs = {}
         if out is not None:
-            if not isinstance(out, Result):
-                raise TypeError(f"out: expected a smoothffd.Result, got {type(out).__name__}")
-            # Each array separately: a positions-only Result has no normals to reuse.
-            shapes = dict(positions=(self.plan.output_vertices, 3),
-                          corner_normals=(self.plan.output_triangles, 3, 3))
+            kind = CompactResult if compact else Result
+            if not isinstance(out, kind):
+                raise TypeError(f"out: expected a smoothffd.{kind.__name__} (layout={layout!r}), "
+                                f"got {type(out).__name__}")
+            # Each array separately: a positions-only result has no normals to reuse.
+            p = self.plan
+            shapes = {"positions": (p.output_vertices, 3),
+                      nname: (p.render_vertex_count, 3) if compact else (p.output_triangles, 3, 3)}
             for name, shape in shapes.items():
                 a = getattr(out, name)
                 if isinstance(a, np.ndarray) and a.shape == shape and (normals or name == "positions"):
                     bufs[name] = a
-            if len(bufs) == 2 and np.shares_memory(bufs["positions"], bufs["corner_normals"]):
-                raise ValueError("out: its positions and corner_normals share memory; each frame "
+            if len(bufs) == 2 and np.shares_memory(bufs["positions"], bufs[nname]):
+                raise ValueError(f"out: its positions and {nname} share memory; each frame "
                                  "writes both, so they must be separate arrays")
         try:
-            positions, corner_normals, stages = self._evaluate(values, bufs, normals)
+            positions, nrm, stages = self._evaluate(values, bufs, normals, compact)
         except (RuntimeError, MemoryError) as exc:
             if self.device != "cuda":
                 raise
             self._fall_back_to_cpu(exc)  # e.g. out of device memory for the copy back
-            positions, corner_normals, stages = self._evaluate(values, bufs, normals)
+            positions, nrm, stages = self._evaluate(values, bufs, normals, compact)
         total = (time.perf_counter() - t0) * 1e3
         s = self._static_arrays()
         p = self.plan
@@ -223,13 +268,22 @@ class Deformer:
                      sub_vertices=p.sub_vertices, output_vertices=p.output_vertices,
                      output_triangles=p.output_triangles, fit_degree=p.fit_degree,
                      level=self.level)
-        return Result(positions=positions, triangles=s["triangles"], corner_normals=corner_normals,
+        stats["layout"] = layout
+        if compact:
+            return CompactResult(positions=positions, normals=nrm, render_vertex=s["render_vertex"],
+                                 render_triangles=s["render_triangles"], triangles=s["triangles"],
+                                 uvs=s["uvs"], face_index=s["face_index"],
+                                 rest_positions=s["rest_positions"], sharp_edges=s["sharp_edges"],
+                                 stats=stats)
+        return Result(positions=positions, triangles=s["triangles"], corner_normals=nrm,
                       uvs=s["uvs"], face_index=s["face_index"],
                       rest_positions=s["rest_positions"], sharp_edges=s["sharp_edges"],
                       stats=stats)
 
-    def _evaluate(self, values, bufs, normals):
-        """(positions, corner_normals or None, stage times) from the evaluator."""
+    def _evaluate(self, values, bufs, normals, compact=False):
+        """(positions, normals or None, stage times) from the evaluator."""
+        if compact:
+            return self._evaluator.evaluate_compact(values, with_normals=normals, **bufs)
         if normals:
             return self._evaluator.evaluate(values, **bufs)
         positions, stages = self._evaluator.evaluate_positions(values, **bufs)
@@ -254,6 +308,6 @@ class Deformer:
             return dict(self._evaluator.evaluate_device(values))
 
 
-def deform(mesh, lattice, level=10, device="auto", normals=True):
+def deform(mesh, lattice, level=10, device="auto", normals=True, layout="corners"):
     """One-shot smooth FFD of `mesh` by `lattice`; see `Deformer` and docs/api.md."""
-    return Deformer(mesh, lattice, level=level, device=device).deform(normals=normals)
+    return Deformer(mesh, lattice, level=level, device=device).deform(normals=normals, layout=layout)

@@ -160,8 +160,9 @@ int poison(sffd_cuda_evaluator* ev, sffd_cuda_error* err) {
   return guarded(err, [&] { ev->ev->poison(); });
 }
 
-int download_compact(sffd_cuda_evaluator* ev, float* positions, float* normals, sffd_cuda_error* err) {
-  return guarded(err, [&] { ev->ev->download_compact(positions, normals); });
+int evaluate_compact(sffd_cuda_evaluator* ev, const float* D, float* positions, float* normals, sffd_cuda_times* times,
+                     sffd_cuda_error* err) {
+  return guarded(err, [&] { put_times(ev->ev->evaluate_compact(D, positions, normals), times); });
 }
 
 int baseline_create(const void* plan, const float* points, const float* normals, const uint32_t* pieces, int64_t count,
@@ -221,7 +222,7 @@ sffd_cuda_api make_api() noexcept {
   a.device_bytes = device_bytes;
   a.limits = limits;
   a.poison = poison;
-  a.download_compact = download_compact;
+  a.evaluate_compact = evaluate_compact;
   a.baseline_create = baseline_create;
   a.baseline_destroy = baseline_destroy;
   a.baseline_control_values = baseline_control_values;

@@ -24,7 +24,7 @@
 extern "C" {
 #endif
 
-#define SFFD_CUDA_ABI_VERSION 1
+#define SFFD_CUDA_ABI_VERSION 2
 #define SFFD_CUDA_ENTRY "sffd_cuda_api_v1"
 
 /* What a failed call raises on the C++ side (cuda_loader.cpp). */
@@ -98,7 +98,9 @@ typedef struct sffd_cuda_api {
   uint64_t (*device_bytes)(const sffd_cuda_evaluator* ev);
   void (*limits)(const sffd_cuda_evaluator* ev, sffd_cuda_limits* out);
   int (*poison)(sffd_cuda_evaluator* ev, sffd_cuda_error* err);
-  int (*download_compact)(sffd_cuda_evaluator* ev, float* positions, float* normals, sffd_cuda_error* err);
+  /* The compact layout: positions N x 3, render-vertex normals R x 3 (null: positions only). */
+  int (*evaluate_compact)(sffd_cuda_evaluator* ev, const float* D, float* positions, float* normals,
+                          sffd_cuda_times* times, sffd_cuda_error* err);
 
   /* The upsampling baseline: points, normals M x 3, pieces M. */
   int (*baseline_create)(const void* plan, const float* points, const float* normals, const uint32_t* pieces,

@@ -13,6 +13,8 @@
 #include <cstdlib>
 #include <cstring>
 #include <mutex>
+#include <system_error>
+#include <thread>
 #include <type_traits>
 #include <unordered_map>
 
@@ -1606,6 +1608,90 @@ struct CudaEvaluator::Impl {
     mark(nullptr);
   }
 
+  // Copies device bytes to host memory behind the work queued on `stream`: straight into a
+  // page-locked destination; into any other through the pinned staging buffer in 4 MiB
+  // chunks, host threads copying each chunk on as soon as its transfer has finished (bus and
+  // host copy overlap, so a pageable destination costs about one chunk's host copy more than
+  // the transfer). Event `from` must be recorded already; events after it are used. Returns
+  // the ms from event `from` to the end of the transfers.
+  struct HostCopy {
+    void* dst;
+    const void* src;
+    size_t bytes;
+  };
+  float copy_to_host(const std::vector<HostCopy>& segs, size_t from) {
+    constexpr size_t kChunk = size_t(4) << 20;
+    struct Chunk {
+      char* dst;
+      const char* src;
+      char* stage;
+      size_t bytes;
+    };
+    std::vector<Chunk> chunks;
+    size_t staged = 0;
+    std::vector<bool> direct(segs.size(), false);
+    for (size_t i = 0; i < segs.size(); ++i) {
+      if (!segs[i].bytes) continue;
+      cudaPointerAttributes attr{};
+      direct[i] = cudaPointerGetAttributes(&attr, segs[i].dst) == cudaSuccess && attr.type == cudaMemoryTypeHost;
+      (void)cudaGetLastError();  // some drivers report unregistered host memory as an error
+      if (!direct[i]) staged += segs[i].bytes;
+    }
+    if (staged) h_out.ensure(staged);
+    size_t at = 0;
+    for (size_t i = 0; i < segs.size(); ++i) {
+      if (!segs[i].bytes) continue;
+      if (direct[i]) {
+        CK(cudaMemcpyAsync(segs[i].dst, segs[i].src, segs[i].bytes, cudaMemcpyDeviceToHost, stream));
+        continue;
+      }
+      for (size_t off = 0; off < segs[i].bytes; off += kChunk) {
+        const size_t n = std::min(kChunk, segs[i].bytes - off);
+        chunks.push_back({static_cast<char*>(segs[i].dst) + off, static_cast<const char*>(segs[i].src) + off,
+                          static_cast<char*>(h_out.ptr) + at, n});
+        at += n;
+      }
+    }
+    events.ensure(from + 2 + chunks.size());
+    for (size_t c = 0; c < chunks.size(); ++c) {
+      CK(cudaMemcpyAsync(chunks[c].stage, chunks[c].src, chunks[c].bytes, cudaMemcpyDeviceToHost, stream));
+      CK(cudaEventRecord(events.ev[from + 2 + c], stream));
+    }
+    CK(cudaEventRecord(events.ev[from + 1], stream));
+    // Chunk c to worker c % workers: each chunk is copied on as soon as it has arrived.
+    const size_t workers = std::min<size_t>(chunks.size(), (size_t)std::min(default_threads(), 8));
+    std::atomic<int> failed{0};
+    auto work = [&](size_t w) {
+      for (size_t c = w; c < chunks.size(); c += workers) {
+        if (failed.load() || cudaEventSynchronize(events.ev[from + 2 + c]) != cudaSuccess) {
+          failed = 1;
+          return;
+        }
+        std::memcpy(chunks[c].dst, chunks[c].stage, chunks[c].bytes);
+      }
+    };
+    {
+      struct Pool {
+        std::vector<std::thread> threads;
+        ~Pool() {
+          for (auto& t : threads) t.join();
+        }
+      } pool;
+      size_t started = 1;
+      try {
+        for (; started < workers; ++started) pool.threads.emplace_back(work, started);
+      } catch (const std::system_error&) {  // no thread granted: this thread does their share
+      }
+      if (workers) work(0);
+      for (size_t w = started; w < workers; ++w) work(w);
+    }
+    CK(cudaEventSynchronize(events.ev[from + 1]));
+    if (failed) throw CudaError("copy back: a transfer failed");
+    float ms = 0;
+    CK(cudaEventElapsedTime(&ms, events.ev[from], events.ev[from + 1]));
+    return ms;
+  }
+
   StageTimes times_from(const std::vector<const char*>& names, size_t first) {
     StageTimes t;
     double total = 0;
@@ -1846,12 +1932,20 @@ StageTimes CudaEvaluator::evaluate(const float* D, float* positions, float* corn
   return t;
 }
 
-void CudaEvaluator::download_compact(float* positions, float* normals) {
+StageTimes CudaEvaluator::evaluate_compact(const float* D, float* positions, float* normals) {
   Impl& m = *impl_;
   const Plan& p = *plan_;
-  CK(cudaStreamSynchronize(m.stream));
-  CK(cudaMemcpy(positions, m.fv.positions, 12 * (size_t)p.output_vertices, cudaMemcpyDeviceToHost));
-  CK(cudaMemcpy(normals, m.normals, 12 * (size_t)p.render_vertices, cudaMemcpyDeviceToHost));
+  std::vector<const char*> names;
+  m.stage_D(D);
+  m.run_stages(&names, true);
+  const size_t e = names.size();  // event e marks the end of the device stages
+  const float ms = m.copy_to_host({{positions, m.fv.positions, 12 * (size_t)p.output_vertices},
+                                   {normals, m.normals, normals ? 12 * (size_t)p.render_vertices : 0}},
+                                  e);
+  CK(cudaGetLastError());
+  StageTimes t = m.times_from(names, 0);
+  t.emplace_back("copy_back", ms);
+  return t;
 }
 
 StageTimes CudaEvaluator::benchmark(const float* D, int iters) {

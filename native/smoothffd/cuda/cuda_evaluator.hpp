@@ -90,8 +90,10 @@ class CudaEvaluator : public Evaluator {
   sffd_cuda_limits limits() const;
   // Fills the device outputs and intermediates with NaN (tests: every element must be written).
   void poison();
-  // Copies of the compact device output: positions (N x 3), render-vertex normals (R x 3).
-  void download_compact(float* positions, float* normals);
+  // Whole frame into the compact layout (evaluator.hpp): only the device's own output
+  // crosses the bus, straight into page-locked destinations, else overlapped with the host's
+  // copy through pinned staging (copy_to_host). normals null: positions only.
+  StageTimes evaluate_compact(const float* D, float* positions, float* normals) override;
 
   // Timing on the device (median of `iters` frames with CUDA events per stage; the whole
   // frame also as a replayed CUDA graph; the device-to-device copy floor on this run).

@@ -167,9 +167,11 @@ void CudaEvaluator::poison() {
   check(api_->poison(handle_, &err), err);
 }
 
-void CudaEvaluator::download_compact(float* positions, float* normals) {
+StageTimes CudaEvaluator::evaluate_compact(const float* D, float* positions, float* normals) {
   sffd_cuda_error err{};
-  check(api_->download_compact(handle_, positions, normals, &err), err);
+  sffd_cuda_times t{};
+  check(api_->evaluate_compact(handle_, D, positions, normals, &t, &err), err);
+  return to_times(t);
 }
 
 // ---------------------------------------------------------------- CudaUpsamplingBaseline

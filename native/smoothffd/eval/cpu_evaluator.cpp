@@ -66,11 +66,31 @@ CpuEvaluator::CpuEvaluator(std::shared_ptr<const Plan> plan, int threads, const 
   edge_control_.resize(6 * (size_t)p.edges);
   patch_control_.resize(30 * (size_t)p.patches);
   patch_normal_.resize(30 * (size_t)p.patches);
+  owned_start_.assign((size_t)p.patches + 1, 0);
+  for (int r = 0; r < p.render_vertices; ++r) owned_start_[(size_t)p.render_owner[2 * (size_t)r] + 1]++;
+  for (int q = 0; q < p.patches; ++q) owned_start_[q + 1] += owned_start_[q];
+  owned_.resize(2 * (size_t)p.render_vertices);
+  std::vector<int> fill(owned_start_.begin(), owned_start_.end() - 1);
+  for (int r = 0; r < p.render_vertices; ++r) {
+    const int q = p.render_owner[2 * (size_t)r], i = fill[q]++;
+    owned_[2 * (size_t)i] = p.render_owner[2 * (size_t)r + 1];
+    owned_[2 * (size_t)i + 1] = r;
+  }
 }
 
 std::string CpuEvaluator::isa() const { return kernels_->isa; }
 
 StageTimes CpuEvaluator::evaluate(const float* D, float* positions, float* corner_normals) {
+  return run(D, positions, corner_normals, nullptr);
+}
+
+StageTimes CpuEvaluator::evaluate_compact(const float* D, float* positions, float* render_normals) {
+  return render_normals ? run(D, positions, nullptr, render_normals) : evaluate_positions(D, positions);
+}
+
+// The whole frame; the normals tessellated per triangle corner (corner_normals) or once per
+// render vertex by its owner (render_normals), one of them non-null.
+StageTimes CpuEvaluator::run(const float* D, float* positions, float* corner_normals, float* render_normals) {
   using Clock = std::chrono::steady_clock;
   const PlanView pv = host_view(*plan_);
   FrameView fv{sample_value_.data(), sample_jacobian_.data(), edge_control_.data(),
@@ -99,7 +119,11 @@ StageTimes CpuEvaluator::evaluate(const float* D, float* positions, float* corne
   lap("tessellate_positions");
   parallel_for(pv.patches, threads_, [&](long long b, long long e) {
     std::vector<float> normals(3 * (size_t)grid_lanes_.padded);
-    k.tessellate_normals(pv, fv, grid_lanes_, b, e, normals.data());
+    if (render_normals)
+      k.tessellate_render_normals(pv, fv, grid_lanes_, owned_start_.data(), owned_.data(), b, e, normals.data(),
+                                  render_normals);
+    else
+      k.tessellate_normals(pv, fv, grid_lanes_, b, e, normals.data());
   });
   lap("tessellate_normals");
   return times;

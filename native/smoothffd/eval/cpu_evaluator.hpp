@@ -34,15 +34,23 @@ class CpuEvaluator : public Evaluator {
   // the edge adjustment reads them (the sub-vertex samples), geometry patches only, no normal
   // tessellation. Stage names as evaluate's, without "tessellate_normals".
   StageTimes evaluate_positions(const float* D, float* positions);
+  // The compact layout (evaluator.hpp): evaluate's stages, the normals tessellated once per
+  // render vertex by its owner instead of once per triangle corner. render_normals null:
+  // evaluate_positions.
+  StageTimes evaluate_compact(const float* D, float* positions, float* render_normals) override;
   int threads() const { return threads_; }
 
  private:
+  StageTimes run(const float* D, float* positions, float* corner_normals, float* render_normals);
   std::shared_ptr<const Plan> plan_;
   int threads_;
   const CpuFrameKernels* kernels_;  // the per-ISA per-frame loops
   SampleBatches batches_;  // sampling: samples grouped by lattice box, kLanes at a time
   FitColumns fit_columns_; // fitting: the centre row's columns, kLanes at a time
   GridBasisLanes grid_lanes_;  // normal tessellation: grid points kLanes at a time
+  // Compact normals: per patch, the (grid point, render vertex) pairs it owns
+  // (Plan::render_owner), in owned_[2 * owned_start_[p], 2 * owned_start_[p + 1]).
+  std::vector<int> owned_start_, owned_;
   std::vector<float> sample_value_, sample_jacobian_, edge_control_, patch_control_, patch_normal_;
 };
 

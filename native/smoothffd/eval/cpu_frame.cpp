@@ -53,6 +53,23 @@ void tessellate_normals(const PlanView& pv, const FrameView& fv, const GridBasis
   }
 }
 
+void tessellate_render_normals(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb,
+                               const int* owned_start, const int* owned, long long b, long long e,
+                               float* normals, float* render_normals) {
+  const int P = gb.padded;
+  for (long long p = b; p < e; ++p) {
+    if (owned_start[p] == owned_start[p + 1]) continue;
+    patch_grid_normals(pv, fv, gb, (int)p, normals);
+    for (int i = owned_start[p]; i < owned_start[p + 1]; ++i) {
+      const int g = owned[2 * i];
+      float* out = render_normals + 3 * (size_t)owned[2 * i + 1];
+      out[0] = normals[g];
+      out[1] = normals[P + g];
+      out[2] = normals[2 * P + g];
+    }
+  }
+}
+
 }  // namespace
 
 SFFD_ISA_END
@@ -62,6 +79,7 @@ extern const CpuFrameKernels cpu_frame_kernels_v3 = {
 #else
 extern const CpuFrameKernels cpu_frame_kernels_baseline = {
 #endif
-    SFFD_ISA_NAME, sample_range, adjust_edges, fit_patches, tessellate_positions, tessellate_normals};
+    SFFD_ISA_NAME,        sample_range,         adjust_edges, fit_patches, tessellate_positions,
+    tessellate_normals,   tessellate_render_normals};
 
 }  // namespace sffd

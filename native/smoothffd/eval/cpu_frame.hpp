@@ -32,6 +32,12 @@ struct CpuFrameKernels {
   // Corner normals of patches [b, e) into fv.corner_normals; scratch: 3 * gb.padded floats.
   void (*tessellate_normals)(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb,
                              long long b, long long e, float* scratch);
+  // The compact layout's normals (evaluator.hpp) of patches [b, e): each patch's grid normals
+  // written to the render vertices it owns, listed as (grid point, render vertex) pairs in
+  // owned[2 * owned_start[p], 2 * owned_start[p + 1]).
+  void (*tessellate_render_normals)(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb,
+                                    const int* owned_start, const int* owned, long long b, long long e,
+                                    float* scratch, float* render_normals);
 };
 
 // Data, not code: the tables hold the addresses of the per-ISA functions.

@@ -21,6 +21,11 @@ class Evaluator {
   // D: nu*nv*nw x 3 control values. Writes positions (N x 3) and corner normals (T x 3 x 3)
   // to host memory and returns per-stage timings.
   virtual StageTimes evaluate(const float* D, float* positions, float* corner_normals) = 0;
+  // The compact layout (Plan's render vertices): positions (N x 3) and unit normals per render
+  // vertex (R x 3; an output vertex duplicated only where normals split), each render
+  // vertex's normal from its owner (Plan::render_owner), the same on every backend up to
+  // float rounding. render_normals null: positions only.
+  virtual StageTimes evaluate_compact(const float* D, float* positions, float* render_normals) = 0;
 };
 
 }  // namespace sffd

@@ -12,6 +12,7 @@
 #include "smoothffd/eval/cpu_evaluator.hpp"
 #include "smoothffd/lattice/lattice_spec.hpp"
 #include "smoothffd/plan/plan.hpp"
+#include "smoothffd/plan/sources.hpp"
 // The CUDA backend, loaded from libsmoothffd_cuda.so when first asked for: the module needs no
 // CUDA library (cuda/cuda_loader.hpp).
 #include "smoothffd/cuda/cuda_loader.hpp"
@@ -228,6 +229,55 @@ PYBIND11_MODULE(_core, m) {
       .def("edge_flags", [](const Plan& p) { return copy_out(p.edge_flags, {(py::ssize_t)p.edges}); })
       .def("edge_vertex", [](const Plan& p) { return copy_out(p.edge_vertex, {(py::ssize_t)p.edges, 2}); })
       .def("patch_vertex", [](const Plan& p) { return copy_out(p.patch_vertex, {(py::ssize_t)p.patches, 3}); })
+      // Where the output lies on the input (plan/sources.hpp).
+      .def("input_triangles",
+           [](const Plan& p) {
+             py::ssize_t n = (py::ssize_t)p.input_triangle_face.size();
+             return py::make_tuple(copy_out(p.input_triangle_corner, {n, 3}), copy_out(p.input_triangle_face, {n}));
+           },
+           "(corners (Tin, 3), face (Tin,)): the core's triangulation of the input faces, as input "
+           "corner indices, and the face of each triangle")
+      .def("patch_sources",
+           [](const Plan& p) {
+             return py::make_tuple(copy_out(p.patch_triangle, {(py::ssize_t)p.patches}),
+                                   copy_out(p.patch_bary, {(py::ssize_t)p.patches, 3, 3}));
+           },
+           "(triangle (P,), barycentrics (P, 3, 3) float64): the input triangle each patch is a piece "
+           "of and its corners' points there; output triangle t belongs to patch t // level**2")
+      .def("vertex_sources",
+           [](const Plan& p) {
+             py::array_t<int> tri({(py::ssize_t)p.output_vertices});
+             py::array_t<float> bary({(py::ssize_t)p.output_vertices, (py::ssize_t)3});
+             int* t = tri.mutable_data();
+             float* b = bary.mutable_data();
+             {
+               py::gil_scoped_release release;
+               vertex_sources(p, t, b);
+             }
+             return py::make_tuple(tri, bary);
+           },
+           "(triangle (N,), barycentrics (N, 3)): the input triangle each output vertex lies in "
+           "(-1: an input vertex no face uses) and its barycentric point there")
+      .def("interpolate_corners",
+           [](const Plan& p, Arr<float> values) {
+             if (values.ndim() < 1 || values.ndim() > 2 || values.shape(0) != (py::ssize_t)p.input_corners)
+               throw std::invalid_argument("values: expected one row per input corner, (C,) or (C, k)");
+             const int k = values.ndim() == 2 ? (int)values.shape(1) : 1;
+             if (k < 1) throw std::invalid_argument("values: need at least one column");
+             std::vector<py::ssize_t> shape = {(py::ssize_t)p.output_triangles, 3};
+             if (values.ndim() == 2) shape.push_back(k);
+             py::array_t<float> out(shape);
+             const float* v = values.data();
+             float* o = out.mutable_data();
+             {
+               py::gil_scoped_release release;
+               interpolate_corners(p, v, k, o);
+             }
+             return out;
+           },
+           py::arg("values"),
+           "per-corner values (C,) or (C, k) -> (T, 3) or (T, 3, k) float32 at the output corners, "
+           "interpolated as the UVs are (a UV map gives exactly Plan.uvs())")
       .def("fit_matrix", [](const Plan& p) { return copy_out(p.fit_matrix, {10, (py::ssize_t)p.columns}); });
 
   m.def(

@@ -12,6 +12,7 @@
 #include "smoothffd/plan/edges.hpp"
 #include "smoothffd/plan/fit_matrix.hpp"
 #include "smoothffd/plan/rest_surface.hpp"
+#include "smoothffd/plan/sources.hpp"
 #include "smoothffd/plan/tessellation.hpp"
 
 namespace sffd {
@@ -248,7 +249,9 @@ size_t Plan::bytes() const {
             grid_basis.size() + local_triangles.size() + patch_grid_vertex.size() +
             output_owner.size() + rest_positions.size() + triangles.size() + face_index.size() +
             uvs.size() + sharp_edges.size() + render_owner.size() + render_position.size() +
-            patch_grid_render.size() + render_triangles.size());
+            patch_grid_render.size() + render_triangles.size() + input_triangle_corner.size() +
+            input_triangle_face.size() + patch_triangle.size());
+  b += 8 * patch_bary.size();
   b += patch_edge_reversed.size() + edge_slot.size() + edge_flags.size();
   return b;
 }
@@ -303,7 +306,6 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   plan.patch_render_normal.resize(9 * (size_t)P);
   plan.patch_adjust_normal.resize(9 * (size_t)P);
   std::vector<double> render_d(9 * (size_t)P);
-  std::vector<float> patch_uv(mesh.corner_uv.empty() ? 0 : 6 * (size_t)P);
   for (int p = 0; p < P; ++p) {
     int t = clip.patch_tri[p];
     plan.patch_face[p] = tr.face[t];
@@ -328,14 +330,14 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
         plan.patch_render_normal[9 * (size_t)p + 3 * c + i] = (float)rn[i];
         plan.patch_adjust_normal[9 * (size_t)p + 3 * c + i] = (float)an[i];
       }
-      if (!patch_uv.empty())
-        for (int i = 0; i < 2; ++i) {
-          double u = 0;
-          for (int k = 0; k < 3; ++k) u += b[k] * mesh.corner_uv[2 * (size_t)tr.corners[3 * t + k] + i];
-          patch_uv[6 * (size_t)p + 2 * c + i] = (float)u;
-        }
     }
   }
+  // Where each patch lies on the input (plan/sources.hpp: UVs and any other carried data).
+  plan.input_corners = (int)mesh.corner_vertex.size();
+  plan.input_triangle_corner = tr.corners;
+  plan.input_triangle_face = tr.face;
+  plan.patch_triangle = clip.patch_tri;
+  plan.patch_bary = clip.patch_bary;
 
   // 4. Sub-mesh adjacency and the sharpness of its edge ends.
   EdgeTable sub = build_edges(plan.patch_vertex);
@@ -486,24 +488,19 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   }
   plan.triangles.resize(3 * (size_t)T);
   plan.face_index.resize(T);
-  if (!patch_uv.empty()) plan.uvs.resize(6 * (size_t)T);
   const int LL = L * L;
   for (int p = 0; p < P; ++p)
     for (int t = 0; t < LL; ++t) {
       size_t ot = (size_t)p * LL + t;
       plan.face_index[ot] = plan.patch_face[p];
-      for (int c = 0; c < 3; ++c) {
-        int g = tess.triangles[3 * t + c];
-        plan.triangles[3 * ot + c] = plan.patch_grid_vertex[(size_t)p * G + g];
-        if (!patch_uv.empty())
-          for (int i = 0; i < 2; ++i) {
-            const double* b = &tess.bary[3 * g];
-            double u = 0;
-            for (int k = 0; k < 3; ++k) u += b[k] * patch_uv[6 * (size_t)p + 2 * k + i];
-            plan.uvs[6 * ot + 2 * c + i] = (float)u;
-          }
-      }
+      for (int c = 0; c < 3; ++c)
+        plan.triangles[3 * ot + c] = plan.patch_grid_vertex[(size_t)p * G + tess.triangles[3 * t + c]];
     }
+  plan.level = L;  // interpolate_corners reads it
+  if (!mesh.corner_uv.empty()) {
+    plan.uvs.resize(6 * (size_t)T);
+    interpolate_corners(plan, mesh.corner_uv.data(), 2, plan.uvs.data());
+  }
   for (int e = 0; e < E; ++e) {
     if (!(plan.edge_flags[e] & (kSharpAtA | kSharpAtB))) continue;
     int prev = sub.vertex[2 * e];

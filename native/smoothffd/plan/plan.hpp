@@ -129,6 +129,16 @@ struct Plan {
   std::vector<int> patch_grid_render;  // P x G: render vertex of each grid point
   std::vector<int> render_triangles;   // T x 3: triangles in render-vertex indices
 
+  // --- where the output lies on the input (plan/sources.hpp): the core's triangulation of the
+  // input faces, and each patch as a piece of one of its triangles. An output corner or vertex
+  // of patch p at grid point g is the barycentric point sum_c bary_g[c] * patch_bary[p][c] of
+  // input triangle patch_triangle[p] (the same arithmetic as the UVs).
+  int input_corners = 0;                   // C
+  std::vector<int> input_triangle_corner;  // Tin x 3: input corners (indices into the corner arrays)
+  std::vector<int> input_triangle_face;    // Tin: input face of each
+  std::vector<int> patch_triangle;         // P: input triangle each patch is a piece of
+  std::vector<double> patch_bary;          // P x 3 x 3: its corners' barycentric points there
+
   // Timings of the plan's build stages (ms), for the stats.
   std::vector<std::pair<std::string, double>> build_ms;
 

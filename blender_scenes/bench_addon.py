@@ -24,7 +24,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # The add-on and the core from the source tree (a development build: scripts/build.sh).
 sys.path[:0] = [os.path.join(ROOT, "addon"), os.path.join(ROOT, "python")]
 import smooth_ffd  # noqa: E402
-from smooth_ffd import compat, engine, handlers  # noqa: E402
+from smooth_ffd import compat, handlers, modifier_update  # noqa: E402
 
 
 def argv():
@@ -149,7 +149,7 @@ def time_edit(lat, obj, repeats, mod=None, early_modes=(True,)):
             t_end = time.perf_counter()
             times.append(1e3 * (t_end - t))
             phases.append({k: 1e3 * v for k, v in _phases(t, t_end).items()})
-            lt = engine.last_timing(obj, mod) if mod is not None else None
+            lt = modifier_update.last_timing(obj, mod) if mod is not None else None
             if lt:
                 own.append(lt)
     _set_early(True)

@@ -19,7 +19,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "addon"))
 import smooth_ffd  # noqa: E402
-from smooth_ffd import engine, meshio  # noqa: E402
+from smooth_ffd import meshio, modifier_update  # noqa: E402
 
 
 
@@ -116,11 +116,9 @@ def run_case(lat, triangulate, with_data):
     mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=LEVEL, render_level=LEVEL)
     bpy.context.view_layer.update()
     first = 1e3 * (time.perf_counter() - t)
-    lt = dict(engine.last_timing(obj, mod) or {})
-    st = engine._states[(obj.name_full, mod.name)]
-    carry_build = st.carry.build_ms if st.carry is not None else 0.0
+    lt = dict(modifier_update.last_timing(obj, mod) or {})
     edit = time_edit(lat, obj, REPEATS)
-    le = engine.last_timing(obj, mod) or {}
+    le = modifier_update.last_timing(obj, mod) or {}
     weight_ms = None
     if with_data:
         obj.vertex_groups["full"].add([5], 0.123, 'REPLACE')
@@ -128,14 +126,14 @@ def run_case(lat, triangulate, with_data):
         t = time.perf_counter()
         bpy.context.view_layer.update()
         weight_ms = 1e3 * (time.perf_counter() - t)
-        lw = engine.last_timing(obj, mod) or {}
+        lw = modifier_update.last_timing(obj, mod) or {}
     t = time.perf_counter()
     smooth_ffd.apply_smooth_ffd(obj, mod)
     apply_ms = 1e3 * (time.perf_counter() - t)
     kind = "triangulated" if triangulate else "quads"
     print(f"{kind:12s} {'groups+2 UV' if with_data else 'no groups, 1 UV':16s} "
           f"out {lt.get('triangles', 0):7d} tris; source read {read_ms:6.1f} ms; first update "
-          f"{first:7.0f} ms (carry {lt.get('carry_ms', 0):6.0f} ms: map {carry_build:5.0f}, "
+          f"{first:7.0f} ms (carry {lt.get('carry_ms', 0):6.0f} ms, "
           f"{lt.get('carry_add_calls', 0)} VertexGroup.add calls); lattice edit {edit:5.0f} ms "
           f"(carry {le.get('carry_ms', 0):.0f} ms)"
           + (f"; weight edit {weight_ms:5.0f} ms (carry {lw.get('carry_ms', 0):.0f}, "

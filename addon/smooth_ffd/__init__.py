@@ -1,7 +1,10 @@
 """Smooth FFD: smooth free-form deformation of meshes by lattices (Cui & Feng 2015).
 
-Blender-facing modules: compat, nodegroup, meshio, latticeio, engine, handlers, operators,
-api. Pure logic without bpy: logic. The core (`smoothffd`) is found by core.py.
+Modules: compat (every Blender-version difference), nodegroup (the node group standing in for
+a modifier type), meshio and latticeio (Blender data in and out through numpy), carry (UV maps
+and vertex groups onto the result), modifier_update (one modifier's update and plan cache),
+handlers, operators, api (scripting). Pure numpy, no bpy: inputs (settings and data -> the
+core's inputs), result_arrays (arrays for the result mesh). core finds the `smoothffd` core.
 """
 bl_info = {
     "name": "Smooth FFD",
@@ -15,11 +18,13 @@ bl_info = {
 
 if "bpy" in locals():   # F8 / script reload: pick up edited submodules
     import importlib
-    for _m in (compat, logic, nodegroup, meshio, latticeio, core, engine, handlers, api, operators):
+    for _m in (compat, inputs, result_arrays, nodegroup, meshio, latticeio, core, carry,
+               modifier_update, handlers, api, operators):
         importlib.reload(_m)
 else:
     import bpy  # noqa: F401
-    from . import compat, logic, nodegroup, meshio, latticeio, core, engine, handlers, api, operators
+    from . import (compat, inputs, result_arrays, nodegroup, meshio, latticeio, core, carry,
+                   modifier_update, handlers, api, operators)
 
 from .api import add_smooth_ffd, apply_smooth_ffd, remove_smooth_ffd, update, status  # noqa: E402,F401
 

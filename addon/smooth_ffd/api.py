@@ -6,7 +6,7 @@
 """
 import bpy
 
-from . import compat, engine, handlers, logic, nodegroup
+from . import compat, handlers, inputs, modifier_update, nodegroup
 
 
 def add_smooth_ffd(obj, lattice_obj=None, viewport_level=3, render_level=10, backend="auto",
@@ -16,9 +16,9 @@ def add_smooth_ffd(obj, lattice_obj=None, viewport_level=3, render_level=10, bac
         raise TypeError("obj: Smooth FFD works on mesh objects")
     if lattice_obj is not None and lattice_obj.type != 'LATTICE':
         raise TypeError(f"lattice_obj: {lattice_obj.name!r} is not a lattice object")
-    logic.parse_level(viewport_level, "viewport_level")
-    logic.parse_level(render_level, "render_level")
-    logic.parse_backend(backend)
+    inputs.parse_level(viewport_level, "viewport_level")
+    inputs.parse_level(render_level, "render_level")
+    inputs.parse_backend(backend)
     mod = obj.modifiers.new(name, 'NODES')
     mod.node_group = nodegroup.ensure_group()
     values = {"Lattice": lattice_obj, "Viewport Level": int(viewport_level),
@@ -27,7 +27,7 @@ def add_smooth_ffd(obj, lattice_obj=None, viewport_level=3, render_level=10, bac
               "Invert Vertex Group": bool(invert_vertex_group)}
     for key, value in values.items():
         compat.set_modifier_input(mod, key, value)
-    engine.result_object(obj, mod)
+    modifier_update.result_object(obj, mod)
     scene = bpy.context.scene
     scene.render.use_lock_interface = True   # see handlers.on_load
     obj.update_tag()
@@ -47,7 +47,7 @@ def update(obj=None, mod=None, render=False, force=False):
         handlers.update_all(depsgraph=depsgraph, render=render, force=force)
     else:
         for m in ([mod] if mod is not None else smooth_ffd_modifiers(obj)):
-            engine.update_modifier(obj, m, depsgraph, render=render, force=force)
+            modifier_update.update_modifier(obj, m, depsgraph, render=render, force=force)
     handlers.guarded(depsgraph.update)
 
 
@@ -64,9 +64,9 @@ def apply_smooth_ffd(obj, mod):
     with handlers.muted():
         name = mod.name   # the modifier is freed by the operator: never touch it after
         depsgraph = bpy.context.evaluated_depsgraph_get()
-        if not engine.update_modifier(obj, mod, depsgraph, render=True, force=True):
+        if not modifier_update.update_modifier(obj, mod, depsgraph, render=True, force=True):
             raise RuntimeError(f"Smooth FFD cannot be applied: {status(mod)}")
-        ro = engine.result_object(obj, mod, create=False)
+        ro = modifier_update.result_object(obj, mod, create=False)
         depsgraph.update()
         if obj.data.users > 1:
             # Blender refuses to apply to shared data; the other users keep the original mesh.
@@ -78,14 +78,14 @@ def apply_smooth_ffd(obj, mod):
         if 'FINISHED' not in result:
             raise RuntimeError(f"applying {name!r} failed: {result}")
         _delete_result(ro)
-        engine.forget(obj, name)   # its plan can be hundreds of MB at the render level
+        modifier_update.forget(obj, name)   # its plan can be hundreds of MB at the render level
     return obj.data
 
 
 def remove_smooth_ffd(obj, mod):
     """Removes the modifier; the object shows its (never modified) source mesh again."""
-    ro = engine.result_object(obj, mod, create=False)
-    engine.forget(obj, mod)
+    ro = modifier_update.result_object(obj, mod, create=False)
+    modifier_update.forget(obj, mod)
     obj.modifiers.remove(mod)
     _delete_result(ro)
 

@@ -8,7 +8,7 @@ import contextlib
 import bpy
 from bpy.app.handlers import persistent
 
-from . import engine, nodegroup
+from . import modifier_update, nodegroup
 
 _busy = False
 _rendering = False
@@ -46,7 +46,7 @@ def update_all(scene=None, depsgraph=None, render=None, changed_meshes=None, for
             # The object itself is re-evaluated whenever its lattice moves; only an update
             # of its mesh data means the source changed.
             mesh_changed = changed_meshes is None or obj.data in changed_meshes
-            count += engine.update_modifier(obj, mod, depsgraph, render=render,
+            count += modifier_update.update_modifier(obj, mod, depsgraph, render=render,
                                             mesh_changed=mesh_changed, force=force)
         return count
     finally:
@@ -83,8 +83,9 @@ def _changed_ids(depsgraph):
 @persistent
 def on_depsgraph_update_pre(scene, depsgraph=None):
     """Writes the result before Blender evaluates an edit, where the original data give the
-    evaluated inputs (engine._early_inputs): Blender then evaluates the modifier once, with
-    the new result, instead of once with the old one and again after on_depsgraph_update."""
+    evaluated inputs (modifier_update._early_inputs): Blender then evaluates the modifier
+    once, with the new result, instead of once with the old one and again after
+    on_depsgraph_update."""
     global _busy
     if _busy or _rendering:
         return
@@ -92,7 +93,7 @@ def on_depsgraph_update_pre(scene, depsgraph=None):
     try:
         for obj, mod in smooth_ffd_modifiers(scene):
             if mod.show_viewport:
-                engine.update_modifier(obj, mod, None, early=True)
+                modifier_update.update_modifier(obj, mod, None, early=True)
     finally:
         _busy = False
 
@@ -113,7 +114,7 @@ def on_frame_change(scene, depsgraph=None):
 
 @persistent
 def on_load(*_args):
-    engine.forget()   # in-memory plans belong to the previous file
+    modifier_update.forget()   # in-memory plans belong to the previous file
     scene = bpy.context.scene
     if scene is not None and smooth_ffd_modifiers(scene):
         # Frame handlers may run on the render thread; the lock keeps the UI from racing it.
@@ -123,7 +124,7 @@ def on_load(*_args):
 
 @persistent
 def on_undo_redo(scene, *_args):
-    engine.invalidate_sources()
+    modifier_update.invalidate_sources()
 
 
 @persistent

@@ -1,7 +1,7 @@
 """Reads a Blender lattice object into the core's BlenderLattice (reference-facts section 1)."""
 import numpy as np
 
-from . import logic
+from . import inputs
 
 
 def read_lattice(lattice_obj, depsgraph):
@@ -11,9 +11,9 @@ def read_lattice(lattice_obj, depsgraph):
     modifiers and animation count, as they do for Blender's Lattice modifier.
     """
     if lattice_obj is None:
-        raise logic.SmoothFFDError("no lattice object set")
+        raise inputs.SmoothFFDError("no lattice object set")
     if lattice_obj.type != 'LATTICE':
-        raise logic.SmoothFFDError(f"{lattice_obj.name!r} is not a lattice object")
+        raise inputs.SmoothFFDError(f"{lattice_obj.name!r} is not a lattice object")
     data = lattice_obj.data
     ev = lattice_obj.evaluated_get(depsgraph).data if depsgraph is not None else data
     shape = (data.points_u, data.points_v, data.points_w)
@@ -23,10 +23,10 @@ def read_lattice(lattice_obj, depsgraph):
     pts = np.empty(count * 3, dtype=np.float32)
     ev.points.foreach_get("co_deform", pts)
     rest = _rest_points(data, shape)
-    interp = logic.interpolation_names((data.interpolation_type_u, data.interpolation_type_v,
+    interp = inputs.interpolation_names((data.interpolation_type_u, data.interpolation_type_v,
                                         data.interpolation_type_w))
-    key = logic.digest(rest, pts, interp, shape)
-    return logic.lattice_grid(rest, shape), logic.lattice_grid(pts, shape), interp, shape, key
+    key = inputs.digest(rest, pts, interp, shape)
+    return inputs.lattice_grid(rest, shape), inputs.lattice_grid(pts, shape), interp, shape, key
 
 
 _rest_cache = {}   # lattice name -> (shape, rest): edit mode hides the rest positions

@@ -2,7 +2,7 @@
 dtypes, which Blender copies as raw memory instead of item by item)."""
 import numpy as np
 
-from . import compat, logic
+from . import compat, inputs, result_arrays
 
 
 class SourceMesh:
@@ -11,13 +11,13 @@ class SourceMesh:
     def __init__(self, mesh, group_index=None, invert=False, group_names=()):
         nv, nl, nf = len(mesh.vertices), len(mesh.loops), len(mesh.polygons)
         if nf == 0:
-            raise logic.SmoothFFDError("the mesh has no faces")
+            raise inputs.SmoothFFDError("the mesh has no faces")
         self.positions = compat.get_positions(mesh)
         self.corner_vertices = compat.get_corner_verts(mesh)
         starts = _get(mesh.polygons, "loop_start", np.int32, nf)
         self.face_offsets = np.append(starts, np.int32(nl)).astype(np.int32)
         if np.any(np.diff(self.face_offsets) < 3):
-            raise logic.SmoothFFDError("the mesh has faces with fewer than 3 corners")
+            raise inputs.SmoothFFDError("the mesh has faces with fewer than 3 corners")
         self.material_index = compat.get_material_index(mesh)
         self.corner_normals = compat.read_corner_normals(mesh)
         uv_layer = _active_uv(mesh)
@@ -36,18 +36,18 @@ class SourceMesh:
             else None
         self.groups = _groups(nv, len(self.group_names), dvert)
         self.weights = None if group_index is None else \
-            logic.vertex_weights(nv, group_index, *dvert, invert)
+            inputs.vertex_weights(nv, group_index, *dvert, invert)
         # Topology decides whether a cached plan can be reused; the rest only its inputs.
-        self.topology_key = logic.digest(self.corner_vertices, self.face_offsets, nv)
+        self.topology_key = inputs.digest(self.corner_vertices, self.face_offsets, nv)
         self._set_key()
         # What the add-on carries besides the core's output (changes need no new plan).
-        self.extras_key = logic.digest(
+        self.extras_key = inputs.digest(
             repr([n for n, _ in self.uv_layers]), self.uv_active, self.uv_render,
             *[uv for _, uv in self.uv_layers], repr(self.group_names),
             *[a for g in self.groups for a in g])
 
     def _set_key(self):
-        self.key = logic.digest(self.topology_key, self.positions, self.corner_normals,
+        self.key = inputs.digest(self.topology_key, self.positions, self.corner_normals,
                                 self.uvs, self.weights, self.material_index)
 
     def keep_normals_of(self, old, tol=1e-6):
@@ -64,11 +64,6 @@ class SourceMesh:
                 np.abs(self.corner_normals - old.corner_normals).max(initial=0.0) <= tol:
             self.corner_normals = old.corner_normals
             self._set_key()
-
-    @property
-    def carries_extras(self):
-        """Whether the result needs data the core does not interpolate (carry.py)."""
-        return len(self.uv_layers) > 1 or bool(self.group_names)
 
     @property
     def num_vertices(self):
@@ -131,7 +126,7 @@ def write_topology(mesh, res, source, materials):
     for mat in materials:
         mesh.materials.append(mat)
     n, t = len(res.positions), len(res.triangles)
-    loops, starts, totals = logic.triangle_loops(res.triangles)
+    loops, starts, totals = result_arrays.triangle_loops(res.triangles)
     mesh.vertices.add(n)
     mesh.loops.add(3 * t)
     mesh.polygons.add(t)
@@ -149,7 +144,7 @@ def write_topology(mesh, res, source, materials):
     attr.data.foreach_set("vector", np.ascontiguousarray(res.rest_positions, np.float32).ravel())
     # UV maps and vertex groups: carry.py, after this.
     compat.set_all_faces_smooth(mesh)
-    flags = logic.edge_flags(compat.get_edges(mesh), res.sharp_edges, n)
+    flags = result_arrays.edge_flags(compat.get_edges(mesh), res.sharp_edges, n)
     compat.set_sharp_edges(mesh, flags)
     # 3.4-4.0: auto smooth makes Blender compute split normals for the whole dense mesh on
     # every evaluation; only needed with sharp edges (custom normals turn it on themselves).

@@ -14,7 +14,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
-from sffd_testlib import smooth_ffd, compat, engine, meshio  # noqa: E402
+from sffd_testlib import smooth_ffd, carry, compat, modifier_update, meshio  # noqa: E402
 
 RNG = np.random.default_rng(7)
 
@@ -167,7 +167,7 @@ def test_vertex_groups():
     obj.modifiers.remove(disp)
     T.update()
 
-    timing_before = engine.last_timing(obj, mod)
+    timing_before = modifier_update.last_timing(obj, mod)
     smooth_ffd.apply_smooth_ffd(obj, mod)
     T.update()
     me = obj.data
@@ -240,42 +240,50 @@ def test_uv_maps():
 
 
 def test_carry_matches_core():
-    """The add-on's triangulation (read back from the core) reproduces the core's own
-    interpolation of the render UV map at every output corner."""
-    obj, lat, mod = sphere_scene(level=3)
-    st = engine._states[(obj.name_full, mod.name)]
-    res = st.deformer.deform()
-    cmap = st.carry
-    T.check("grid table found (fast path)", cmap.table is not None)
-    mine = cmap.corner_values(st.source.uvs, res)
-    err = np.abs(mine - res.uvs.reshape(-1, 2)).max()
-    T.check("carry triangulation == core's (all corners)", err < 2e-6,
-            f"{len(mine)} corners, max err {err:.1e}")
-    # The direct path (each corner from its rest point) agrees too.
-    table, cmap.table = cmap.table, None
-    try:
-        direct = cmap.corner_values(st.source.uvs, res)
-        c = np.arange(len(res.triangles) * 3)
-        corners_d, bary_d = cmap.corner_barycentrics(res, c)
-    finally:
-        cmap.table = table
-    corners_t, bary_t = cmap.corner_barycentrics(res, c)
-    err_d = np.abs(direct - res.uvs.reshape(-1, 2)).max()
-    T.check("direct path == core's (all corners)", err_d < 2e-6 and
-            np.array_equal(corners_d, corners_t) and np.abs(bary_d - bary_t).max() < 1e-5,
-            f"max err {err_d:.1e}, bary diff {np.abs(bary_d - bary_t).max():.1e}")
+    """A copy of the render UV map under another name goes through the add-on's carrying
+    (Plan.interpolate_corners) and must come out as the core's own UVs, bitwise; the plan's
+    vertex sources put every output vertex on its rest position."""
+    T.clear()
+    obj = T.make_mesh("uvsphere")
+    me = obj.data
+    set_uv(me, "UVMap", RNG.uniform(0, 1, (len(me.loops), 2)))
+    set_uv(me, "copy", uv_array(me, "UVMap"))
+    me.uv_layers["UVMap"].active_render = True
+    lat = T.make_lattice((3, 3, 3), "KEY_BSPLINE", scale=(1.6, 1.6, 1.6), seed=5)
+    mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=3)
+    T.update()
+    st = modifier_update._states[(obj.name_full, mod.name)]
+    res = st.result
+    ev = T.evaluated_mesh(obj)
+    copy, render = uv_array(ev, "copy"), uv_array(ev, "UVMap")
+    T.check("carried copy == core's UVs (all corners, bitwise)",
+            np.array_equal(copy, res.uvs.reshape(-1, 2)) and np.array_equal(copy, render),
+            f"{len(copy)} corners, max diff {np.abs(copy - res.uvs.reshape(-1, 2)).max():.1e}")
+    plan = st.deformer.plan
+    tri, bary = plan.vertex_sources()
+    corners, _ = plan.input_triangles()
+    src = Source(obj)
+    pts = src.co[src.cv[corners[tri]]].astype(np.float64)
+    err = np.abs(np.einsum("nk,nki->ni", bary, pts) - res.rest_positions).max()
+    T.check("vertex sources reproduce the rest positions", err < 2e-6, f"max err {err:.1e}")
 
 
 def test_no_extras_no_cost():
-    """No groups, one UV map: no carry map is built (nothing added to the hot path)."""
+    """No groups, one UV map: the vertex sources are never asked for (nothing added to the
+    hot path) and no VertexGroup.add is called."""
     T.clear()
     obj = T.make_mesh("uvsphere")
     lat = T.make_lattice((3, 3, 3), "KEY_BSPLINE", scale=(1.6, 1.6, 1.6), seed=5)
-    mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=2)
-    T.update()
-    st = engine._states[(obj.name_full, mod.name)]
-    t = engine.last_timing(obj, mod)
-    T.check("no groups, one UV map: no carry map", st.carry is None and t["carry_add_calls"] == 0,
+    calls = []
+    group_values = carry.group_values
+    carry.group_values = lambda *a: calls.append(1) or group_values(*a)
+    try:
+        mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=2)
+        T.update()
+    finally:
+        carry.group_values = group_values
+    t = modifier_update.last_timing(obj, mod)
+    T.check("no groups, one UV map: nothing carried", not calls and t["carry_add_calls"] == 0,
             f"carry {t['carry_ms']:.2f} ms")
     ev = T.evaluated_mesh(obj)
     T.check("one UV map carried", [l.name for l in ev.uv_layers] == ["UVMap"])
@@ -284,7 +292,7 @@ def test_no_extras_no_cost():
 def test_extras_follow_edits():
     """Carried data follow source edits that need no new plan (weights, UV maps, groups)."""
     obj, lat, mod = sphere_scene()
-    st = engine._states[(obj.name_full, mod.name)]
+    st = modifier_update._states[(obj.name_full, mod.name)]
     plan = st.plan_key
     nv = len(obj.data.vertices)
     v = int(np.nonzero(groups_of(obj.data, ["full", "partial"])["partial"][0])[0][0])
@@ -314,7 +322,7 @@ def test_extras_follow_edits():
     finally:
         compat.read_corner_normals = read
     T.check("normals jitter on re-read keeps the plan", st.plan_key == plan and
-            not engine.last_timing(obj, mod)["rebuilt"], str(engine.last_timing(obj, mod)["rebuilt"]))
+            not modifier_update.last_timing(obj, mod)["rebuilt"], str(modifier_update.last_timing(obj, mod)["rebuilt"]))
     obj.vertex_groups.clear()
     obj.data.update()
     T.update()

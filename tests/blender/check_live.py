@@ -9,7 +9,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
-from sffd_testlib import smooth_ffd, compat, engine, latticeio, meshio  # noqa: E402
+from sffd_testlib import smooth_ffd, compat, modifier_update, latticeio, meshio  # noqa: E402
 
 TOL = 1e-5
 
@@ -72,9 +72,9 @@ def test_lattice_edits():
 def _computations(fn):
     """Runs fn (an edit + update); returns how many results were computed, and where (an
     early computation that failed is a failure of its own)."""
-    before = dict(engine.counters)
+    before = dict(modifier_update.counters)
     fn()
-    n = {k: engine.counters[k] - before[k] for k in before}
+    n = {k: modifier_update.counters[k] - before[k] for k in before}
     errors = n.pop("early_errors")
     if errors:
         T.check("no failed early computation", False, f"{errors} failed")
@@ -95,12 +95,12 @@ def test_update_path():
             T.update()
         return fn
 
-    plan = engine._state(obj, mod).deformer
+    plan = modifier_update._state(obj, mod).deformer
     n = _computations(move())
     parity("lattice move: parity", obj, lat, ref, mod)
     T.check("lattice move: one computation, before the evaluation",
             n == {"computed": 1, "early": 1, "post": 0}, str(n))
-    T.check("lattice move: plan kept", engine._state(obj, mod).deformer is plan)
+    T.check("lattice move: plan kept", modifier_update._state(obj, mod).deformer is plan)
     n = _computations(T.update)
     T.check("no edit: no computation", n["computed"] == 0, str(n))
     # Object transform: its world matrix is its own loc/rot/scale, known before evaluation.
@@ -125,7 +125,7 @@ def test_update_path():
     n = _computations(T.update)
     parity("topology edit: parity", obj, lat, ref, mod)
     T.check("topology edit: new plan, computed once", n["computed"] == 1
-            and engine._state(obj, mod).deformer is not plan, str(n))
+            and modifier_update._state(obj, mod).deformer is not plan, str(n))
     for i in range(3):
         n = _computations(move(0.15 if i % 2 == 0 else -0.1, lat.data.points[10 + i]))
         parity(f"lattice move {i + 1} after topology edit: parity", obj, lat, ref, mod)
@@ -156,10 +156,10 @@ def test_update_path():
         return read_lattice(lat_obj, depsgraph)
     latticeio.read_lattice = broken
     try:
-        before = dict(engine.counters)
+        before = dict(modifier_update.counters)
         move(0.05, lat.data.points[3])()
         T.update()
-        n = {k: engine.counters[k] - before[k] for k in before}
+        n = {k: modifier_update.counters[k] - before[k] for k in before}
     finally:
         latticeio.read_lattice = read_lattice
     parity("failed early computation: parity", obj, lat, ref, mod)
@@ -203,13 +203,13 @@ def test_positions_only_path():
     geometry) asks the core for positions only; exact normals (Exact Normals, render and
     Apply, and 4.5+ always) ask for normals. Parity holds either way."""
     obj, lat, ref, mod = scene("cube")
-    st = engine._state(obj, mod)
-    ro = engine.result_object(obj, mod, create=False)
+    st = modifier_update._state(obj, mod)
+    ro = modifier_update.result_object(obj, mod, create=False)
 
     def calls(fn):
-        before = dict(engine.deform_calls)
+        before = dict(modifier_update.deform_calls)
         fn()
-        return {k: engine.deform_calls[k] - before[k] for k in before}
+        return {k: modifier_update.deform_calls[k] - before[k] for k in before}
 
     def move(dz=0.15):
         def fn():
@@ -251,7 +251,7 @@ def test_positions_only_path():
             n == (none if compat.CHEAP_EXACT_NORMALS else viewport), str(n))
     # Render (what the render handler and Apply call): normals, in every version.
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    n = calls(lambda: engine.update_modifier(obj, mod, depsgraph, render=True, force=True))
+    n = calls(lambda: modifier_update.update_modifier(obj, mod, depsgraph, render=True, force=True))
     T.check("render update: normals", n == {"normals": 1, "positions_only": 0}, str(n))
     T.check("render update: custom normals written", ro.data.has_custom_normals)
     T.update()
@@ -449,8 +449,8 @@ def test_duplicate():
     dup = T.link(obj.copy())
     dup.location.x += 2.0
     T.update()
-    r1 = engine.result_object(obj, obj.modifiers[0], create=False)
-    r2 = engine.result_object(dup, dup.modifiers[0], create=False)
+    r1 = modifier_update.result_object(obj, obj.modifiers[0], create=False)
+    r2 = modifier_update.result_object(dup, dup.modifiers[0], create=False)
     T.check("duplicate gets its own result", r1 is not None and r2 is not None and r1 != r2,
             f"{r1} {r2}")
     parity("original after duplicate", obj, lat, ref, obj.modifiers[0])
@@ -499,11 +499,11 @@ def test_apply_remove():
     T.check("apply: modifier gone", len(obj.modifiers) == 0)
     T.check("apply: render-level mesh", n == npatch * render_level ** 2, f"{n} tris")
     T.check("apply: result object deleted",
-            not any(o.get(engine.OWNER_KEY) is not None for o in bpy.data.objects))
+            not any(o.get(modifier_update.OWNER_KEY) is not None for o in bpy.data.objects))
     T.check("apply: old mesh untouched", source_digest_mesh(old) == old_digest)
     # The modifier is freed by Apply: its in-memory plan must go by the name it had.
-    T.check("apply: in-memory state dropped", not any(k[0] == obj.name_full for k in engine._states),
-            str(list(engine._states)))
+    T.check("apply: in-memory state dropped", not any(k[0] == obj.name_full for k in modifier_update._states),
+            str(list(modifier_update._states)))
     obj, lat, ref, mod = scene()
     smooth_ffd.remove_smooth_ffd(obj, mod)
     T.update()

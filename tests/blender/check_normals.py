@@ -8,7 +8,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
-from sffd_testlib import smooth_ffd, compat, engine, latticeio, logic, meshio  # noqa: E402
+from sffd_testlib import smooth_ffd, compat, modifier_update, latticeio, inputs, meshio  # noqa: E402
 
 ANGLE_TOL = 2e-3   # radians; 3.4-4.4 store custom normals as 16-bit angles in a normal space
 SPLIT_ANGLE = 1e-2
@@ -61,7 +61,7 @@ def run_mesh(kind, level):
                              [len(p.vertices) for p in src.polygons])
     # Expected: cof(J) n at each original vertex, J of the whole map in object space.
     rest, pts, interp, _shape, _key = latticeio.read_lattice(lat, None)
-    l2o = logic.lattice_to_object(np.array(obj.matrix_world), np.array(lat.matrix_world))
+    l2o = inputs.lattice_to_object(np.array(obj.matrix_world), np.array(lat.matrix_world))
     sf = T.core_module()
     lattice = sf.BlenderLattice(rest, pts, interpolation=interp, lattice_to_object=l2o)
     _pos, jac = lattice.evaluate(T.positions(src))
@@ -104,10 +104,10 @@ def run_mesh(kind, level):
     if compat.HAS_FREE_NORMAL_ATTRIBUTE:
         want = 'POINT' if kind in ("suzanne", "uvsphere") else 'CORNER'
         # The add-on's own result mesh (what the modifier's node group reads).
-        attr = engine.result_object(obj, mod, create=False).data.attributes.get("custom_normal")
+        attr = modifier_update.result_object(obj, mod, create=False).data.attributes.get("custom_normal")
         domain = attr.domain if attr is not None else None
         T.check(f"{label}: custom normals on the {want} domain", domain == want, str(domain))
-        res = engine._states[(obj.name_full, mod.name)].result
+        res = modifier_update._states[(obj.name_full, mod.name)].result
         core = np.asarray(res.corner_normals).reshape(-1, 3)
         if attr is not None:
             stored = np.empty(3 * len(attr.data), dtype=np.float32)

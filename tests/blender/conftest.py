@@ -1,5 +1,6 @@
-"""pytest fixtures for tests/blender/test_*.py (pure logic, no Blender). The check_*.py
-scripts here are not pytest modules: they run inside Blender (see tests/test_blender.py)."""
+"""pytest fixtures for tests/blender/test_*.py (the add-on's pure-numpy modules, no Blender).
+The check_*.py scripts here are not pytest modules: they run inside Blender (see
+tests/test_blender.py)."""
 import importlib.util
 import os
 
@@ -8,11 +9,20 @@ import pytest
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
-@pytest.fixture(scope="module")
-def logic():
-    """addon/smooth_ffd/logic.py loaded by path: importing the package itself needs bpy."""
+def _load(name):
+    """addon/smooth_ffd/<name>.py loaded by path: importing the package itself needs bpy."""
     spec = importlib.util.spec_from_file_location(
-        "smooth_ffd_logic", os.path.join(ROOT, "addon", "smooth_ffd", "logic.py"))
+        f"smooth_ffd_{name}", os.path.join(ROOT, "addon", "smooth_ffd", f"{name}.py"))
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
+
+
+@pytest.fixture(scope="module")
+def inputs():
+    return _load("inputs")
+
+
+@pytest.fixture(scope="module")
+def result_arrays():
+    return _load("result_arrays")

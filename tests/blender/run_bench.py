@@ -14,8 +14,7 @@ import sffd_testlib as T  # noqa: E402
 addon = T.smooth_ffd
 if T.INSTALLED:
     sys.modules["smooth_ffd"] = addon
-    for name in ("api", "compat", "core", "engine", "handlers", "latticeio", "logic", "meshio",
-                 "nodegroup"):
+    for name in T.MODULES:
         sys.modules["smooth_ffd." + name] = getattr(T, name)
     addon.register = lambda: None
     T.setup()

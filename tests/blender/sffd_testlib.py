@@ -42,10 +42,10 @@ def _load_addon():
 # The add-on and its modules: check scripts import them from here, never by name, so that
 # they test whichever copy this is (installed: bl_ext.user_default.smooth_ffd on 4.2+).
 smooth_ffd = _load_addon()
-api, compat, core, engine, handlers, latticeio, logic, meshio, nodegroup = (
-    importlib.import_module(f"{smooth_ffd.__name__}.{m}")
-    for m in ("api", "compat", "core", "engine", "handlers", "latticeio", "logic", "meshio",
-              "nodegroup"))
+MODULES = ("api", "carry", "compat", "core", "handlers", "inputs", "latticeio", "meshio",
+           "modifier_update", "nodegroup", "result_arrays")
+(api, carry, compat, core, handlers, inputs, latticeio, meshio, modifier_update, nodegroup,
+ result_arrays) = (importlib.import_module(f"{smooth_ffd.__name__}.{m}") for m in MODULES)
 
 _registered = INSTALLED   # enabling an installed add-on registers it
 _results = []
@@ -85,7 +85,7 @@ def args():
 
 
 def clear():
-    engine.forget()
+    modifier_update.forget()
     for coll in (bpy.data.objects, bpy.data.meshes, bpy.data.lattices, bpy.data.node_groups,
                  bpy.data.materials, bpy.data.actions, bpy.data.shape_keys):
         for item in list(coll):
@@ -267,5 +267,5 @@ def points_twin(points, obj, lat, strength=1.0):
 def patches(obj, mod):
     """Patches of the modifier's current plan: input triangles cut by the lattice's knot
     planes. Each patch is tessellated into level^2 output triangles."""
-    t = engine.last_timing(obj, mod)
+    t = modifier_update.last_timing(obj, mod)
     return int(t["stats"]["patches"]) if t else -1

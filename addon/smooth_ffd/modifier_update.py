@@ -1,11 +1,12 @@
-"""Computes one Smooth FFD modifier: gathers inputs from Blender, runs the core (reusing its
-plan when only the lattice points moved) and writes the hidden result mesh."""
+"""Updates one Smooth FFD modifier: gathers its inputs from Blender, runs the core (reusing
+its plan, cached per modifier, when only the lattice points moved) and writes the hidden
+result mesh; also the modifier's status line and its result object."""
 import time
 
 import bpy
 import numpy as np
 
-from . import carry, compat, core, latticeio, logic, meshio, nodegroup
+from . import carry, compat, core, inputs, latticeio, meshio, nodegroup
 
 OWNER_KEY = "smooth_ffd_owner"          # result object -> source object's name_full (a string)
 MODIFIER_KEY = "smooth_ffd_modifier"    # result object -> modifier name
@@ -24,8 +25,6 @@ class _State:
         self.deformer = None
         self.plan_key = None
         self.result = None        # the last core Result: its arrays are reused (out=)
-        self.carry = None         # carry.CarryMap of the current plan (UV maps, groups)
-        self.carry_key = None
         self.vertex_corner = None  # (plan_key, meshio.vertex_corners) of the current plan
         self.status_base = None   # last "OK ..." status, without the stack warning
         self.above = 0            # enabled modifiers above this one, as last reported
@@ -50,7 +49,7 @@ def invalidate_sources():
 
 
 def forget(obj=None, mod=None):
-    """Drops the in-memory state (plan, source, carry map) of one modifier, or of all.
+    """Drops the in-memory state (plan, source) of one modifier, or of all.
     mod: the modifier or its name (after Apply the modifier itself is freed)."""
     if obj is None:
         _states.clear()
@@ -186,11 +185,11 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
     """
     st = _state(obj, mod)
     try:
-        inputs = _early_inputs(obj, mod, st) if early else \
+        gathered = _early_inputs(obj, mod, st) if early else \
             _inputs(obj, mod, st, depsgraph, render, mesh_changed)
-        if inputs is None:
+        if gathered is None:
             return False
-        settings, level, backend, exact, lattice_data, l2o, source, key = inputs
+        settings, level, backend, exact, lattice_data, l2o, source, key = gathered
         ro = result_object(obj, mod, create=not early)
         if ro is None:
             return False
@@ -216,7 +215,7 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
         res = st.result = st.deformer.deform(lattice, out=st.result, normals=exact)
         deform_calls["normals" if exact else "positions_only"] += 1
         t1 = time.perf_counter()
-        times = _write_result(obj, ro, res, source, logic.digest(plan_key), exact, st)
+        times = _write_result(obj, ro, res, source, inputs.digest(plan_key), exact, st)
         normals = times.pop("normals")
         t2 = time.perf_counter()
         st.last_key = key
@@ -239,7 +238,7 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
             # written here never matches the next key (or its topology token) and is redone.
             counters["early_errors"] += 1
             return False
-        _fail(obj, mod, st, str(e) if isinstance(e, logic.SmoothFFDError)
+        _fail(obj, mod, st, str(e) if isinstance(e, inputs.SmoothFFDError)
               else f"{type(e).__name__}: {e}")
     return False
 
@@ -252,16 +251,16 @@ deform_calls = {"normals": 0, "positions_only": 0}
 
 
 def _level_backend_exact(settings, render):
-    level = logic.parse_level(settings.render_level if render else settings.viewport_level,
+    level = inputs.parse_level(settings.render_level if render else settings.viewport_level,
                               "render level" if render else "viewport level")
-    backend = logic.parse_backend(settings.backend)
+    backend = inputs.parse_backend(settings.backend)
     # Exact custom normals up to 4.4 only when asked for (slow); 4.5+ always exact.
     exact = render or settings.exact or compat.CHEAP_EXACT_NORMALS
     return level, backend, exact
 
 
 def _key(lattice_key, l2o, settings, source, level, backend, exact):
-    return logic.digest(lattice_key, l2o, settings.strength, source.key, source.extras_key, level,
+    return inputs.digest(lattice_key, l2o, settings.strength, source.key, source.extras_key, level,
                         backend, exact)
 
 
@@ -270,7 +269,7 @@ def _inputs(obj, mod, st, depsgraph, render, mesh_changed):
     settings = Settings(mod)
     level, backend, exact = _level_backend_exact(settings, render)
     rest, pts, interp, shape, lattice_key = latticeio.read_lattice(settings.lattice, depsgraph)
-    l2o = logic.lattice_to_object(latticeio.world_matrix(obj, depsgraph),
+    l2o = inputs.lattice_to_object(latticeio.world_matrix(obj, depsgraph),
                                   latticeio.world_matrix(settings.lattice, depsgraph))
     source = _source(obj, settings, st, mesh_changed)
     key = _key(lattice_key, l2o, settings, source, level, backend, exact)
@@ -304,7 +303,7 @@ def _early_inputs(obj, mod, st):
         return None
     level, backend, exact = _level_backend_exact(settings, False)
     rest, pts, interp, shape, lattice_key = latticeio.read_lattice(lat, None)
-    l2o = logic.lattice_to_object(obj_matrix, lat_matrix)
+    l2o = inputs.lattice_to_object(obj_matrix, lat_matrix)
     key = _key(lattice_key, l2o, settings, st.source, level, backend, exact)
     return settings, level, backend, exact, (rest, pts, interp), l2o, st.source, key
 
@@ -369,23 +368,12 @@ def _fail(obj, mod, st, message):
 
 def _result_matches(mesh, st):
     """False when something else (undo, the user) changed the result mesh behind our back."""
-    return mesh.get(TOPOLOGY_KEY) == (logic.digest(st.plan_key) if st.plan_key else None)
+    return mesh.get(TOPOLOGY_KEY) == (inputs.digest(st.plan_key) if st.plan_key else None)
 
 
 def _materials(obj):
     return [slot.material for slot in obj.material_slots] if obj.material_slots else \
         list(obj.data.materials)
-
-
-def _carry_map(st, source, res):
-    """The plan's CarryMap (built once per plan, and only for sources that need it)."""
-    if not source.carries_extras:
-        return None
-    if st.carry is None or st.carry_key != st.plan_key:
-        st.carry = None
-        st.carry = carry.CarryMap(source, st.deformer.plan, res)
-        st.carry_key = st.plan_key
-    return st.carry
 
 
 def _write_result(obj, ro, res, source, topology_token, exact, st):
@@ -403,13 +391,13 @@ def _write_result(obj, ro, res, source, topology_token, exact, st):
     else:
         meshio.write_positions(mesh, res)
     # UV maps and vertex groups: with a new topology, or when only they changed.
-    extras_token = logic.digest(topology_token, source.extras_key)
+    extras_token = inputs.digest(topology_token, source.extras_key)
     carry_ms, carry_calls = 0.0, 0
     if rebuild or mesh.get(EXTRAS_KEY) != extras_token:
         tc = time.perf_counter()
-        cmap = _carry_map(st, source, res)
-        carry.write_uv_layers(mesh, res, source, cmap)
-        carry_calls = carry.write_vertex_groups(ro, res, source, cmap)
+        plan = st.deformer.plan   # where the output lies on the input (docs/api.md)
+        carry.write_uv_layers(mesh, res, source, plan)
+        carry_calls = carry.write_vertex_groups(ro, source, plan)
         mesh[EXTRAS_KEY] = extras_token
         carry_ms = 1e3 * (time.perf_counter() - tc)
     t1 = time.perf_counter()

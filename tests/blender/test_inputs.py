@@ -1,0 +1,48 @@
+"""Unit tests of addon/smooth_ffd/inputs.py (settings and Blender data -> the core's inputs;
+numpy only, no bpy). The `inputs` fixture (conftest.py) loads it by path."""
+import numpy as np
+import pytest
+
+
+def test_lattice_grid_u_fastest(inputs):
+    nu, nv, nw = 2, 3, 4
+    flat = np.array([(u, v, w) for w in range(nw) for v in range(nv) for u in range(nu)], float)
+    g = inputs.lattice_grid(flat, (nu, nv, nw))
+    assert g.shape == (nu, nv, nw, 3)
+    assert tuple(g[1, 2, 3]) == (1, 2, 3)
+
+
+def test_lattice_to_object(inputs):
+    m = np.diag([2.0, 2.0, 2.0, 1.0]); m[:3, 3] = (1, 0, 0)
+    lat = np.eye(4); lat[:3, 3] = (3, 0, 0)
+    l2o = inputs.lattice_to_object(m, lat)
+    assert np.allclose(l2o @ [0, 0, 0, 1], [1, 0, 0, 1])   # (3 - 1) / 2
+    with pytest.raises(inputs.SmoothFFDError):
+        inputs.lattice_to_object(np.diag([0.0, 1, 1, 1]), lat)
+
+
+def test_vertex_weights(inputs):
+    w = inputs.vertex_weights(4, 1, [0, 1, 1, 3], [1, 0, 1, 1], [0.5, 0.9, 0.25, 2.0], False)
+    assert np.allclose(w, [0.5, 0.25, 0, 1])
+    wi = inputs.vertex_weights(4, 1, [0, 1, 1, 3], [1, 0, 1, 1], [0.5, 0.9, 0.25, 2.0], True)
+    assert np.allclose(wi, [0.5, 0.75, 1, 0])
+    assert inputs.vertex_weights(4, None, [], [], [], False) is None
+
+
+def test_parse(inputs):
+    assert inputs.parse_backend(" CPU ") == "cpu"
+    assert inputs.parse_backend("CUDA") == "cuda"       # a menu item's name (4.1+)
+    assert inputs.parse_backend("") == "auto"
+    with pytest.raises(inputs.SmoothFFDError):
+        inputs.parse_backend("gpu")
+    assert inputs.parse_level(3, "x") == 3
+    with pytest.raises(inputs.SmoothFFDError):
+        inputs.parse_level(0, "x")
+    assert inputs.interpolation_names(["KEY_BSPLINE", "KEY_LINEAR", "KEY_CARDINAL"]) == \
+        ("BSPLINE", "LINEAR", "CARDINAL")
+
+
+def test_digest(inputs):
+    a = np.arange(6, dtype=np.float32)
+    assert inputs.digest(a, 1) == inputs.digest(a.copy(), 1)
+    assert inputs.digest(a, 1) != inputs.digest(a.astype(np.float64), 1)

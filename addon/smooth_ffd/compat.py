@@ -21,6 +21,10 @@ CHEAP_EXACT_NORMALS = HAS_FREE_NORMAL_ATTRIBUTE
 HAS_TREE_INTERFACE = VERSION >= (4, 0)
 # 5.2 moved modifier inputs from ID properties to mod.properties.inputs.
 HAS_MODIFIER_PROPERTIES = VERSION >= (5, 2)
+# 4.1 added menu sockets: a group input of type NodeSocketMenu takes its items from the Menu
+# Switch node it feeds; the modifier stores the chosen item's number (an int ID property whose
+# UI data lists the items).
+HAS_MENU_SOCKET = VERSION >= (4, 1)
 # Attributes for sharp edges / flat faces replaced the MeshEdge/MeshPolygon flags.
 HAS_SHARP_EDGE_ATTRIBUTE = VERSION >= (3, 5)
 HAS_SHARP_FACE_ATTRIBUTE = VERSION >= (3, 6)
@@ -50,14 +54,53 @@ def hide_in_modifier(socket):
         socket.hide_in_modifier = True
 
 
-def input_identifier(group, name):
-    """Resolves a group input's identifier from its name: Input_N up to 3.6, Socket_N from 4.0."""
+def input_socket(group, name):
+    """The group's interface input named `name` (KeyError when there is none)."""
     if group is None:
         raise KeyError(f"no node group: no input named {name!r}")
     for socket in group_sockets(group, 'INPUT'):
         if socket.name == name:
-            return socket.identifier
+            return socket
     raise KeyError(f"node group {group.name!r} has no input named {name!r}")
+
+
+def input_identifier(group, name):
+    """Resolves a group input's identifier from its name: Input_N up to 3.6, Socket_N from 4.0."""
+    return input_socket(group, name).identifier
+
+
+def is_menu_socket(socket):
+    """Whether an interface socket is a menu (4.1+); 3.x sockets call their type
+    bl_socket_idname."""
+    kind = getattr(socket, "socket_type", None) or getattr(socket, "bl_socket_idname", None)
+    return kind == 'NodeSocketMenu'
+
+
+def menu_items(mod, ident):
+    """[(name, number)] of a menu input, from the modifier's ID-property UI data (4.1-5.1)."""
+    items = mod.id_properties_ui(ident).as_dict().get("items") or ()
+    return [(item[0], item[-1]) for item in items]
+
+
+def _menu_name(mod, ident, value):
+    """The item name a menu input's stored number stands for; the raw value when none does
+    (the caller then reports it)."""
+    try:
+        for name, number in menu_items(mod, ident):
+            if number == value:
+                return name
+    except (AttributeError, TypeError, KeyError):
+        pass
+    return value
+
+
+def _menu_value(mod, ident, name):
+    """The number a menu input stores for the item called `name` (any case)."""
+    items = menu_items(mod, ident)
+    for item, number in items:
+        if item.lower() == str(name).strip().lower():
+            return number
+    raise ValueError(f"{name!r} is not one of {', '.join(i for i, _ in items)}")
 
 
 def _input_slot(mod, ident):
@@ -72,19 +115,27 @@ def _input_slot(mod, ident):
 def get_modifier_input(mod, name):
     """A Geometry Nodes modifier's input value by the group input's name: mod["Input_N"] up to
     3.6, mod["Socket_N"] from 4.0 (ID properties), mod.properties.inputs.<identifier>.value
-    from 5.2."""
-    ident = input_identifier(mod.node_group, name)
-    if HAS_MODIFIER_PROPERTIES:
-        return _input_slot(mod, ident).value
-    return mod[ident]
+    from 5.2. A menu input (4.1+) gives its item's name."""
+    socket = input_socket(mod.node_group, name)
+    ident = socket.identifier
+    value = _input_slot(mod, ident).value if HAS_MODIFIER_PROPERTIES else mod[ident]
+    if not isinstance(value, str) and is_menu_socket(socket):
+        value = _menu_name(mod, ident, value)
+    return value
 
 
 def set_modifier_input(mod, name, value):
-    ident = input_identifier(mod.node_group, name)
+    """Sets an input by name; a menu input (4.1+) takes its item's name (any case), and
+    raises ValueError for a name that is not an item."""
+    socket = input_socket(mod.node_group, name)
+    ident = socket.identifier
     if HAS_MODIFIER_PROPERTIES:
+        # 5.2 (from its documentation, untested): a menu input's value is its item's name.
         _input_slot(mod, ident).value = value
-    else:
-        mod[ident] = value
+        return
+    if isinstance(value, str) and is_menu_socket(socket):
+        value = _menu_value(mod, ident, value)
+    mod[ident] = value
 
 
 # --- positions ------------------------------------------------------------------------------

@@ -115,6 +115,8 @@ def on_frame_change(scene, depsgraph=None):
 @persistent
 def on_load(*_args):
     modifier_update.forget()   # in-memory plans belong to the previous file
+    for _obj, mod in smooth_ffd_modifiers():
+        nodegroup.migrate(mod)   # 3.4-4.0's text Backend -> 4.1+'s menu
     scene = bpy.context.scene
     if scene is not None and smooth_ffd_modifiers(scene):
         # Frame handlers may run on the render thread; the lock keeps the UI from racing it.

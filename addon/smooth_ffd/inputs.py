@@ -59,7 +59,7 @@ def vertex_weights(num_vertices, group_index, dvert_indices, dvert_groups, dvert
 
 def parse_backend(text):
     """The Backend setting (text on 3.4-4.0, a menu item's name from 4.1) -> 'auto'/'cpu'/'cuda'."""
-    b = (text or "auto").strip().lower()
+    b = str(text or "auto").strip().lower()
     if b not in BACKENDS:
         raise SmoothFFDError(f"backend must be one of {', '.join(BACKENDS)}, not {text!r}")
     return b

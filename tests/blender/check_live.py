@@ -1,5 +1,6 @@
 """Live behaviour through the handlers: lattice edits, settings, frames, shape keys, source
-edits, errors, undo, duplicate, save/reload (with and without the add-on), apply, remove."""
+edits, errors, undo, duplicate, save/reload (with and without the add-on), the Backend setting
+(a menu from 4.1, text before; files with the text setting moved to the menu), apply, remove."""
 import os
 import sys
 import tempfile
@@ -9,7 +10,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
-from sffd_testlib import smooth_ffd, compat, modifier_update, latticeio, meshio  # noqa: E402
+from sffd_testlib import smooth_ffd, compat, modifier_update, latticeio, meshio, nodegroup  # noqa: E402
 
 TOL = 1e-5
 
@@ -385,10 +386,14 @@ def test_errors():
     obj, lat, ref, mod = scene("cube")
     src = source_digest(obj)
     nsrc = len(obj.data.vertices)
+    backend = compat.input_identifier(mod.node_group, "Backend")
     for label, name, value in (("bad backend", "Backend", "gpu9"),
                                ("non-lattice object", "Lattice", ref),
                                ("no lattice", "Lattice", None)):
-        compat.set_modifier_input(mod, name, value)
+        if name == "Backend" and compat.HAS_MENU_SOCKET:
+            mod[backend] = 99      # a menu holds only its items: a number that is none of them
+        else:
+            compat.set_modifier_input(mod, name, value)
         obj.update_tag()
         T.update()
         st = smooth_ffd.status(mod)
@@ -487,6 +492,72 @@ def test_save_reload():
         smooth_ffd.register()
 
 
+def test_backend_setting():
+    """4.1+: Backend is a menu (Auto, CPU, CUDA) whose setting the add-on reads by item name;
+    3.4-4.0: a text input. Either way the chosen backend is the one used."""
+    obj, lat, ref, mod = scene("cube")
+    sock = compat.input_socket(mod.node_group, "Backend")
+    kind = getattr(sock, "socket_type", None) or sock.bl_socket_idname
+    want = 'NodeSocketMenu' if compat.HAS_MENU_SOCKET else 'NodeSocketString'
+    T.check("Backend socket type", kind == want and nodegroup.layout(mod.node_group) ==
+            (2 if compat.HAS_MENU_SOCKET else 1), f"{kind}, layout {nodegroup.layout(mod.node_group)}")
+    got = compat.get_modifier_input(mod, "Backend")
+    T.check("default backend auto", str(got).lower() == "auto", repr(got))
+    if compat.HAS_MENU_SOCKET:
+        items = [n for n, _ in compat.menu_items(mod, sock.identifier)]
+        T.check("menu items", items == ["Auto", "CPU", "CUDA"], str(items))
+        try:
+            compat.set_modifier_input(mod, "Backend", "gpu")
+            refused = False
+        except ValueError:
+            refused = True
+        T.check("a name that is no item is refused", refused)
+    compat.set_modifier_input(mod, "Backend", "cpu")
+    obj.update_tag()
+    T.update()
+    T.check("cpu chosen, cpu used", str(compat.get_modifier_input(mod, "Backend")).lower() == "cpu"
+            and smooth_ffd.status(mod).startswith("OK cpu"), smooth_ffd.status(mod))
+    parity("backend cpu: parity", obj, lat, ref, mod)
+
+
+def test_text_backend_file():
+    """A file whose modifier uses 3.4-4.0's group (Backend as text, layout 1) keeps working:
+    on 4.1+ opening it moves the modifier to the menu group with every setting kept."""
+    obj, lat, ref, mod = scene("cube")
+    old = nodegroup._build_group(nodegroup.TEXT_LAYOUT)
+    ro = modifier_update.result_object(obj, mod, create=False)
+    settings = {"Lattice": lat, "Viewport Level": 3, "Render Level": 4, "Backend": "cpu",
+                "Strength": 0.75, "Result Object": ro}
+    mod.node_group = old
+    for name, value in settings.items():
+        compat.set_modifier_input(mod, name, value)
+    ref.modifiers[0].strength = 0.75
+    T.update()
+    T.check("text layout: backend read as text", compat.get_modifier_input(mod, "Backend") == "cpu"
+            and smooth_ffd.status(mod).startswith("OK cpu"), smooth_ffd.status(mod))
+    path = os.path.join(tempfile.mkdtemp(), "sffd_text_backend.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    obj, lat, ref = (bpy.data.objects[n] for n in ("src", "lat", "src.ref"))
+    mod = obj.modifiers[0]
+    T.update()
+    want = 2 if compat.HAS_MENU_SOCKET else 1
+    T.check("opened: layout of this Blender", nodegroup.layout(mod.node_group) == want and
+            len([g for g in bpy.data.node_groups if nodegroup.is_smooth_ffd_group(g)]) == 1,
+            f"layout {nodegroup.layout(mod.node_group)}, groups {[g.name for g in bpy.data.node_groups]}")
+    kept = {n: compat.get_modifier_input(mod, n) for n in settings}
+    T.check("opened: settings kept", str(kept["Backend"]).lower() == "cpu" and
+            kept["Lattice"] == lat and kept["Viewport Level"] == 3 and kept["Render Level"] == 4
+            and abs(kept["Strength"] - 0.75) < 1e-7
+            and kept["Result Object"] == modifier_update.result_object(obj, mod, create=False),
+            str(kept))
+    parity("opened: parity", obj, lat, ref, mod)
+    T.check("opened: cpu used", smooth_ffd.status(mod).startswith("OK cpu"), smooth_ffd.status(mod))
+    lat.data.points[4].co_deform.x += 0.2
+    T.update()
+    parity("opened: still live", obj, lat, ref, mod)
+
+
 def test_apply_remove():
     obj, lat, ref, mod = scene(level=1)
     old = obj.data
@@ -518,7 +589,8 @@ def source_digest_mesh(me):
 def main():
     T.setup()
     for fn in (test_lattice_edits, test_update_path, test_positions_only_path, test_levels, test_frames_and_shape_keys, test_uvs_materials, test_hook, test_edit_modes,
-               test_errors, test_undo, test_duplicate, test_save_reload, test_apply_remove):
+               test_errors, test_undo, test_duplicate, test_save_reload, test_backend_setting,
+               test_text_backend_file, test_apply_remove):
         T.run(fn.__name__, fn)
     T.finish()
 

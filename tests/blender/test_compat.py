@@ -246,3 +246,41 @@ def test_blender_52_modifier_properties():
     mod.node_group = None
     with pytest.raises(KeyError):
         compat.set_modifier_input(mod, "Render Level", 1)
+
+
+class MenuModifier(IDPropModifier):
+    """4.1-5.1 with a menu input: the ID property holds the item's number, its UI data the items
+    as (identifier, name, description, icon, number), numbers not in item order."""
+
+    def __init__(self, group, ident, items):
+        super().__init__(group)
+        self.menu_ident, self.items = ident, items
+
+    def id_properties_ui(self, key):
+        assert key == self.menu_ident
+        items = [(n, n, "", 0, v) for n, v in self.items]
+        return types.SimpleNamespace(as_dict=lambda: {"default": 0, "items": items})
+
+
+def test_menu_input_by_item_name():
+    compat = load_compat((4, 2, 0))
+    assert compat.HAS_MENU_SOCKET and not load_compat((4, 0, 2)).HAS_MENU_SOCKET
+    group = build_group(compat, Group40())
+    compat.new_group_socket(group, 'INPUT', 'NodeSocketMenu', "Backend")
+    ident = compat.input_identifier(group, "Backend")
+    mod = MenuModifier(group, ident, [("Auto", 4), ("CPU", 2), ("CUDA", 7)])
+    compat.set_modifier_input(mod, "Backend", "cpu")      # any case
+    assert mod.idprops[ident] == 2
+    assert compat.get_modifier_input(mod, "Backend") == "CPU"
+    with pytest.raises(ValueError):
+        compat.set_modifier_input(mod, "Backend", "gpu")
+    mod.idprops[ident] = 99                                 # no item: the raw value
+    assert compat.get_modifier_input(mod, "Backend") == 99
+    compat.set_modifier_input(mod, "Viewport Level", 3)     # other inputs: as before
+    assert mod.idprops[compat.input_identifier(group, "Viewport Level")] == 3
+    # A text Backend (a file from 3.4-4.0) still reads as its text.
+    old = build_group(compat, Group40())
+    compat.new_group_socket(old, 'INPUT', 'NodeSocketString', "Backend")
+    mod2 = IDPropModifier(old)
+    compat.set_modifier_input(mod2, "Backend", "cuda")
+    assert compat.get_modifier_input(mod2, "Backend") == "cuda"

@@ -6,7 +6,9 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <deque>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
 
 #include "smoothffd/eval/cpu_evaluator.hpp"
@@ -95,17 +97,80 @@ py::tuple run_evaluator(Evaluator& ev, const Arr<float>& D, const py::object& ou
   return py::make_tuple(pos, nrm, times_dict(t));
 }
 
+// Page-locked output arrays for the CUDA evaluator's compact layout: the device copies into
+// them at the bus's speed, where a pageable array goes through a staging buffer (about twice
+// the time on the H100 machine: docs/benchmarks.md). A block whose last numpy owner is gone
+// returns to a small pool, so a frame loop that drops its previous result reuses blocks
+// instead of pinning fresh memory (cudaHostAlloc costs milliseconds for such sizes).
+class PinnedPool {
+ public:
+  static PinnedPool& get() {
+    static PinnedPool* pool = new PinnedPool;  // never destroyed: no CUDA calls at exit
+    return *pool;
+  }
+  void* take(size_t bytes) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      for (auto it = free_.begin(); it != free_.end(); ++it)
+        if (it->second == bytes) {
+          void* p = it->first;
+          free_.erase(it);
+          return p;
+        }
+    }
+    return cuda_host_alloc(bytes);
+  }
+  void give(void* p, size_t bytes) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    free_.emplace_back(p, bytes);
+    while (free_.size() > kKeep) {  // the oldest free block goes back to the system
+      cuda_host_free(free_.front().first);
+      free_.pop_front();
+    }
+  }
+
+ private:
+  static constexpr size_t kKeep = 4;  // two results' positions and normals
+  std::mutex mutex_;
+  std::deque<std::pair<void*, size_t>> free_;
+};
+
+// A float32 array in a pooled page-locked block, or an ordinary one when the CUDA backend
+// has no such memory to give.
+py::array_t<float> pinned_array(const std::vector<py::ssize_t>& shape) {
+  size_t bytes = sizeof(float);
+  for (py::ssize_t s : shape) bytes *= (size_t)s;
+  void* p = nullptr;
+  try {
+    p = PinnedPool::get().take(bytes);
+  } catch (const std::exception&) {
+    return py::array_t<float>(shape);
+  }
+  auto* block = new std::pair<void*, size_t>(p, bytes);
+  py::capsule owner(block, [](void* b) {
+    auto* q = static_cast<std::pair<void*, size_t>*>(b);
+    PinnedPool::get().give(q->first, q->second);
+    delete q;
+  });
+  return py::array_t<float>(shape, static_cast<float*>(p), owner);
+}
+
 // The compact layout: (positions (N, 3), render-vertex normals (R, 3) or None, stage times).
-// normals=False: positions only (the out normals are neither needed nor touched).
+// normals=False: positions only (the out normals are neither needed nor touched). pinned: new
+// arrays in page-locked memory (the CUDA evaluator).
 py::tuple run_compact(Evaluator& ev, const Arr<float>& D, const py::object& out_positions,
-                      const py::object& out_normals, bool normals) {
+                      const py::object& out_normals, bool normals, bool pinned = false) {
   const Plan& plan = ev.plan();
   check_values(plan, D);
-  py::array_t<float> pos = output_array(out_positions, {(py::ssize_t)plan.output_vertices, 3}, "positions");
+  auto out = [&](const py::object& given, py::ssize_t rows, const char* name) {
+    if (pinned && given.is_none()) return pinned_array({rows, 3});
+    return output_array(given, {rows, 3}, name);
+  };
+  py::array_t<float> pos = out(out_positions, (py::ssize_t)plan.output_vertices, "positions");
   py::object nrm_obj = py::none();
   float* n = nullptr;
   if (normals) {
-    py::array_t<float> nrm = output_array(out_normals, {(py::ssize_t)plan.render_vertices, 3}, "normals");
+    py::array_t<float> nrm = out(out_normals, (py::ssize_t)plan.render_vertices, "normals");
     n = nrm.mutable_data();
     nrm_obj = nrm;
   }
@@ -388,12 +453,12 @@ PYBIND11_MODULE(_core, m) {
            py::arg("values"), py::arg("positions") = py::none(), py::arg("corner_normals") = py::none())
       .def("evaluate_compact",
            [](CudaEvaluator& ev, Arr<float> D, py::object positions, py::object normals, bool with_normals) {
-             return run_compact(ev, D, positions, normals, with_normals);
+             return run_compact(ev, D, positions, normals, with_normals, /*pinned=*/true);
            },
            py::arg("values"), py::arg("positions") = py::none(), py::arg("normals") = py::none(),
            py::arg("with_normals") = true,
            "(positions (N, 3), render-vertex normals (R, 3) or None, stage times): the compact "
-           "layout (Plan.render_vertices() for its topology)")
+           "layout (Plan.render_vertices() for its topology); new arrays are page-locked (pooled)")
       .def("evaluate_positions",
            [](CudaEvaluator& ev, Arr<float> D, py::object positions) {
              return run_positions(ev, D, positions, [&](const float* d, float* p) {

@@ -6,6 +6,8 @@ natively, `native/smoothffd/lattice/axis_basis.cpp`). A lattice object holds the
 (what a plan depends on) and the control values D (what changes every frame).
 """
 
+import copy
+
 import numpy as np
 
 from . import _core
@@ -144,8 +146,15 @@ class BSplineLattice(_Lattice):
         return cls(lat._greville, degree=degree, knots=knots, box_min=bmin, box_max=bmax)
 
     def with_control_points(self, control_points):
-        """Same structure (degree, knots, box), new control points."""
-        return BSplineLattice(control_points, self.degree, self.knots, self.box_min, self.box_max)
+        """Same structure (degree, knots, box), new control points.
+
+        The per-frame path: only the new points are checked and converted; the structure
+        (knots, Greville points, the core's lattice spec) is shared with this lattice."""
+        cp = float_array(control_points, "control_points", shape=self.control_points.shape)
+        lat = copy.copy(self)
+        lat.control_points = cp
+        lat._values = cp - self._greville
+        return lat
 
     with_points = with_control_points
 
@@ -212,6 +221,13 @@ class BlenderLattice(_Lattice):
         self._key = ("blender", interp, counts, tuple(self._map.ravel()))
 
     def with_points(self, points):
-        """Same structure (rest points, interpolation, matrix), new deformed points."""
-        return BlenderLattice(self.rest_points, points, self.interpolation,
-                              self.lattice_to_object, self.strength)
+        """Same structure (rest points, interpolation, matrix), new deformed points.
+
+        The per-frame path: only the new points are checked and converted; the structure is
+        shared with this lattice."""
+        pts = float_array(points, "points", shape=self.points.shape)
+        lat = copy.copy(self)
+        lat.points = pts
+        m = self.lattice_to_object
+        lat._values = self.strength * np.einsum("rc,uvwc->uvwr", m[:3, :3], pts - self.rest_points)
+        return lat

@@ -3,6 +3,8 @@
 // of cuda_evaluator.hpp. Every exception stops here and becomes an error code and message.
 #include "smoothffd/cuda/cuda_api.h"
 
+#include <cuda_runtime.h>
+
 #include <cstring>
 #include <memory>
 #include <stdexcept>
@@ -165,6 +167,26 @@ int evaluate_compact(sffd_cuda_evaluator* ev, const float* D, float* positions, 
   return guarded(err, [&] { put_times(ev->ev->evaluate_compact(D, positions, normals), times); });
 }
 
+int host_alloc(uint64_t bytes, void** out, sffd_cuda_error* err) {
+  return guarded(err, [&] {
+    if (!out) throw std::invalid_argument("host_alloc: null output");
+    *out = nullptr;
+    const cudaError_t rc = cudaHostAlloc(out, bytes ? bytes : 1, cudaHostAllocDefault);
+    if (rc == cudaErrorMemoryAllocation) {
+      (void)cudaGetLastError();
+      throw sffd::CudaOutOfMemory("no page-locked host memory for " + std::to_string(bytes) + " bytes");
+    }
+    if (rc != cudaSuccess) {
+      (void)cudaGetLastError();
+      throw sffd::CudaError(std::string("cudaHostAlloc: ") + cudaGetErrorString(rc));
+    }
+  });
+}
+
+void host_free(void* ptr) {
+  if (ptr) (void)cudaFreeHost(ptr);
+}
+
 int baseline_create(const void* plan, const float* points, const float* normals, const uint32_t* pieces, int64_t count,
                     sffd_cuda_baseline** out, sffd_cuda_error* err) {
   return guarded(err, [&] {
@@ -223,6 +245,8 @@ sffd_cuda_api make_api() noexcept {
   a.limits = limits;
   a.poison = poison;
   a.evaluate_compact = evaluate_compact;
+  a.host_alloc = host_alloc;
+  a.host_free = host_free;
   a.baseline_create = baseline_create;
   a.baseline_destroy = baseline_destroy;
   a.baseline_control_values = baseline_control_values;

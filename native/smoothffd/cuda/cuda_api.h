@@ -101,6 +101,10 @@ typedef struct sffd_cuda_api {
   /* The compact layout: positions N x 3, render-vertex normals R x 3 (null: positions only). */
   int (*evaluate_compact)(sffd_cuda_evaluator* ev, const float* D, float* positions, float* normals,
                           sffd_cuda_times* times, sffd_cuda_error* err);
+  /* Page-locked host memory (cudaHostAlloc / cudaFreeHost) for output arrays: the device copies
+   * into it at the bus's full speed. host_free takes what host_alloc returned. */
+  int (*host_alloc)(uint64_t bytes, void** out, sffd_cuda_error* err);
+  void (*host_free)(void* ptr);
 
   /* The upsampling baseline: points, normals M x 3, pieces M. */
   int (*baseline_create)(const void* plan, const float* points, const float* normals, const uint32_t* pieces,

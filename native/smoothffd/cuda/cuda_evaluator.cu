@@ -1609,10 +1609,10 @@ struct CudaEvaluator::Impl {
   }
 
   // Copies device bytes to host memory behind the work queued on `stream`: straight into a
-  // page-locked destination; into any other through the pinned staging buffer in 4 MiB
+  // page-locked destination; into any other through the pinned staging buffer in 1 MiB
   // chunks, host threads copying each chunk on as soon as its transfer has finished (bus and
   // host copy overlap, so a pageable destination costs about one chunk's host copy more than
-  // the transfer). Event `from` must be recorded already; events after it are used. Returns
+  // the transfer; 4 MiB chunks left a 0.4 ms tail on the H100 machine). Event `from` must be recorded already; events after it are used. Returns
   // the ms from event `from` to the end of the transfers.
   struct HostCopy {
     void* dst;
@@ -1620,7 +1620,7 @@ struct CudaEvaluator::Impl {
     size_t bytes;
   };
   float copy_to_host(const std::vector<HostCopy>& segs, size_t from) {
-    constexpr size_t kChunk = size_t(4) << 20;
+    constexpr size_t kChunk = size_t(1) << 20;
     struct Chunk {
       char* dst;
       const char* src;
@@ -1659,7 +1659,7 @@ struct CudaEvaluator::Impl {
     }
     CK(cudaEventRecord(events.ev[from + 1], stream));
     // Chunk c to worker c % workers: each chunk is copied on as soon as it has arrived.
-    const size_t workers = std::min<size_t>(chunks.size(), (size_t)std::min(default_threads(), 8));
+    const size_t workers = std::min<size_t>(chunks.size(), (size_t)std::min(default_threads(), 16));
     std::atomic<int> failed{0};
     auto work = [&](size_t w) {
       for (size_t c = w; c < chunks.size(); c += workers) {

@@ -112,6 +112,18 @@ std::pair<bool, std::string> cuda_status() {
   return {ok != 0, std::string(msg)};
 }
 
+void* cuda_host_alloc(size_t bytes) {
+  const sffd_cuda_api* api = api_or_throw();
+  sffd_cuda_error err{};
+  void* p = nullptr;
+  check(api->host_alloc(bytes, &p, &err), err);
+  return p;
+}
+
+void cuda_host_free(void* ptr) {
+  if (ptr) api_or_throw()->host_free(ptr);
+}
+
 // ---------------------------------------------------------------- CudaEvaluator
 
 CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string& path, int64_t shared_memory_limit)

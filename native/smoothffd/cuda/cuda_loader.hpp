@@ -30,6 +30,10 @@ bool cuda_library_present();
 // library is not there, failed to load (the loader's message), was built from other sources,
 // no NVIDIA driver, driver too old, no device, no kernels for the device's architecture.
 std::pair<bool, std::string> cuda_status();
+// Page-locked host memory from the CUDA backend (CudaError / CudaOutOfMemory when there is
+// none), and its release.
+void* cuda_host_alloc(size_t bytes);
+void cuda_host_free(void* ptr);
 
 class CudaEvaluator : public Evaluator {
  public:

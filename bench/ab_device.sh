@@ -10,17 +10,21 @@
 #   reference tree too: `git archive exp/x ... | tar -x -C ab_exp1`.
 # TEST_REFS: those of REFS to run the GPU tests in as well (their archives must hold tests/).
 # ROUNDS (default 4), LEVELS (default 10), STEPS as device_run.sh's for the working tree
-# (default "build test"); NCU=1 adds the profile; VARIANTS: space-separated NAME=VALUE
-# settings, each also timed with the working tree (label = the setting). Logs under $OUT.
+# (default "build test"); NCU=1 adds the profile; CASES: semicolon-separated sets of
+# bench/ab_time.py options (e.g. "--limit 49152;--degree 4"), each timed with every tree as well
+# (label = tree + case). ARCHS: CUDA architectures of every tree's build (default: the
+# project's; 90-real builds an H100's kernels alone, in a fifth of the time). Logs under $OUT.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-/tmp/sffd-out}; mkdir -p "$OUT"
 REFS=${REFS:-${REF:-ab_ref}}
 export PATH="$PATH:/usr/local/cuda/bin" PYTHONUNBUFFERED=1
 label() { [ "$1" = ab_ref ] && echo ref || basename "$1"; }
+ARCH_ARG=${ARCHS:+-DSMOOTHFFD_CUDA_ARCHITECTURES=$ARCHS}
+export ARCH_ARG
 for ref in $REFS; do
   ( cd "$ref" && BUILD_DIR="/tmp/build-$(basename "$ref")" PYTHON="$(command -v python3)" \
-      CMAKE_ARGS="-DSMOOTHFFD_TESTS=OFF" bash scripts/build.sh > "$OUT/build_$(basename "$ref").log" 2>&1
+      CMAKE_ARGS="-DSMOOTHFFD_TESTS=OFF $ARCH_ARG" bash scripts/build.sh > "$OUT/build_$(basename "$ref").log" 2>&1
     echo "$ref build rc=$?" ) &
 done
 STEPS=${STEPS:-"build test"} bash bench/device_run.sh 2>&1 | grep -v "^ *Function\|REG:\|STACK:" | tail -20
@@ -30,11 +34,15 @@ for ref in ${TEST_REFS:-}; do
   ( cd "$ref" && PYTHONPATH="$PWD/python" timeout 300 python3 -m pytest -q -x tests/test_cuda.py tests/test_render_vertices.py \
       2>&1 | tee "$OUT/test_$(basename "$ref").log" | tail -4 )
 done
+IFS=';' read -r -a cases <<< "${CASES:-}"
 for r in $(seq 1 "${ROUNDS:-4}"); do
   for L in ${LEVELS:-10}; do
-    for ref in $REFS; do PYTHONPATH="$ref/python" python3 bench/ab_time.py --level "$L" --label "$(label "$ref")"; done
-    PYTHONPATH="$PWD/python" python3 bench/ab_time.py --level "$L" --label new
-    for v in ${VARIANTS:-}; do PYTHONPATH="$PWD/python" python3 bench/ab_time.py --level "$L" --label "$v" --env "$v"; done
+    for c in "" "${cases[@]}"; do
+      # shellcheck disable=SC2086
+      for ref in $REFS; do PYTHONPATH="$ref/python" python3 bench/ab_time.py --level "$L" $c --label "$(label "$ref")${c:+ $c}"; done
+      # shellcheck disable=SC2086
+      PYTHONPATH="$PWD/python" python3 bench/ab_time.py --level "$L" $c --label "new${c:+ $c}"
+    done
   done
 done 2>&1 | tee "$OUT/ab.log"
 python3 - "$OUT/ab.log" <<'PY'

@@ -1,9 +1,14 @@
-"""Times the default fused path on W1 (L = 10) with whichever smoothffd is first on the path:
+"""Times the fused path on W1 (L = 10) with whichever smoothffd is first on the path:
 bench/ab_device.sh runs it alternately against two builds in one device call, so that a
 change is compared with its reference on the same machine (the floor varies between calls).
 
     PYTHONPATH=<tree>/python python3 bench/ab_time.py [--iters 100] [--level 10] [--label new]
-        [--env SMOOTHFFD_X=1 ...]
+        [--path fused|cublas] [--limit BYTES] [--degree D]
+
+--limit emulates a GPU with that much shared memory a block (shared_memory_limit), --degree
+uses a lattice of that degree: the inline kernel's other modes, reached as a plan or a device
+reaches them. Works with trees from before the timing harness moved to bench/ (their
+CudaEvaluator.benchmark) and after (bench/native's sffd_bench module).
 """
 
 import argparse
@@ -23,16 +28,18 @@ ap = argparse.ArgumentParser()
 ap.add_argument("--iters", type=int, default=100)
 ap.add_argument("--level", type=int, default=10)
 ap.add_argument("--label", default="")
-ap.add_argument("--env", action="append", default=[], help="NAME=VALUE set before the evaluator is made")
+ap.add_argument("--path", default="fused")
+ap.add_argument("--limit", type=int, default=0, help="shared_memory_limit (bytes; 0: the device's own)")
+ap.add_argument("--degree", type=int, default=2, help="lattice degree (every axis)")
 args = ap.parse_args()
-for kv in args.env:
-    name, value = kv.split("=", 1)
-    os.environ[name] = value
 P, F, N = bench_gpu.torus(167, 140)
-lat = bench_gpu.lattice_for(P, np.random.default_rng(2015))
+lat = bench_gpu.lattice_for(P, np.random.default_rng(2015), degree=(args.degree,) * 3)
 mesh = smoothffd.Mesh(P, F, corner_normals=N[F.reshape(-1)])
 plan = smoothffd.Deformer(mesh, lat, level=args.level, device="cpu").plan
-b = _core.CudaEvaluator(plan, "fused").benchmark(bench_gpu.values(lat), args.iters)
+ev = _core.CudaEvaluator(plan, args.path, shared_memory_limit=args.limit)
+kernel = getattr(ev, "kernel", getattr(ev, "fused_kernel", "?"))
+b = bench_gpu.benchmark(ev, plan, args.path, args.limit, bench_gpu.values(lat), args.iters)
 print(json.dumps(dict(label=args.label, module=os.path.dirname(smoothffd.__file__), level=args.level,
-                      events=b["total_events"], queued=b.get("total_events_queued", float("nan")), graph=b["total_graph"],
-                      floor=b["floor_ms"])))
+                      path=args.path, limit=args.limit, degree=args.degree, kernel=kernel,
+                      events=b["total_events"], queued=b.get("total_events_queued", float("nan")),
+                      graph=b["total_graph"], floor=b["floor_ms"])))

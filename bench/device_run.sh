@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # One call on the lent GPU machine: build, GPU tests, compute-sanitizer, benchmark.
 #   run(command="bash bench/device_run.sh", carry=[".carry"])
-# STEPS (env) picks a subset: "build test sanitize bench" (default: all). Logs under $OUT.
+# STEPS (env) picks a subset: "build test sanitize bench" (default: all); ARCH_ARG, extra CMake
+# arguments (bench/ab_device.sh sets it from ARCHS). Logs under $OUT.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-/tmp/sffd-out}
@@ -17,7 +18,7 @@ if has build; then
     cp -r .carry/eigen3 /usr/include/ && mkdir -p /usr/share/eigen3/cmake && cp .carry/eigen3-cmake/* /usr/share/eigen3/cmake/
   fi
   t0=$(date +%s)
-  BUILD_DIR=/tmp/sffd-build PYTHON="$(command -v python3)" CMAKE_ARGS="-DSMOOTHFFD_TESTS=OFF" bash scripts/build.sh > "$OUT/build.log" 2>&1
+  BUILD_DIR=/tmp/sffd-build PYTHON="$(command -v python3)" CMAKE_ARGS="-DSMOOTHFFD_TESTS=OFF ${ARCH_ARG:-}" bash scripts/build.sh > "$OUT/build.log" 2>&1
   rc=$?
   echo "build rc=$rc in $(( $(date +%s) - t0 )) s"; grep -E "error|warning: .*cuda" "$OUT/build.log" | head -20
   [ $rc -eq 0 ] || { tail -30 "$OUT/build.log"; exit 1; }

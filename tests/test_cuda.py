@@ -2,7 +2,9 @@
 
 Positions must agree to 1e-5 of the lattice size and normals to 1e-4 rad, for random
 lattices of several degrees, both lattice kinds, levels 1..16, meshes with sharp and smooth
-edges and knot-box clipping, on both product paths (fused and cuBLAS). Device buffers are
+edges and knot-box clipping, on both paths (fused and cuBLAS) and in each of the inline
+kernel's modes (boxes, weights, global: chosen by the plan and the device's shared memory, so
+the tests reach them with lattices, levels and emulated smaller devices). Device buffers are
 poisoned with NaN before every run and every output element must come back finite.
 
 Skipped (with the reason) where no usable CUDA device exists.
@@ -142,7 +144,7 @@ def check(mesh, lat, level, path, shared_memory_limit=0):
     assert dp <= 1e-5, f"positions differ by {dp:.2e} of the lattice size"
     assert da <= 1e-4, f"normals differ by {da:.2e} rad"
     assert times["copy_back"] >= 0 and times["host_expand"] >= 0
-    assert ("sampling" in times) != ("sample_fit_tessellate" in times)  # staged or inline kernels
+    assert ("sampling" in times) != ("sample_fit_tessellate" in times)  # the reference or the inline kernel
     ev.poison()
     t = ev.evaluate_device(vals)
     assert t["device_total"] > 0
@@ -187,28 +189,29 @@ def test_levels(level, path):
     check(cube(sharp=True, cuts=1), bspline(rng, degree=(2, 3, 2)), level=level, path=path)
 
 
-REGS = ("SMOOTHFFD_FUSED_FIT", "regs")
-STAGED = ("SMOOTHFFD_FUSED_FIT", "staged")
-_S, _L, _B = "SMOOTHFFD_SAMPLE_BLOCKS", "SMOOTHFFD_FUSED_LANES", "SMOOTHFFD_FUSED_BLOCKS"
-# Inline (default) kernel with other register caps and with the per-sample weights instead
-# of the box polynomials, then every switch of the staged kernels.
-VARIANTS = [((_B, "5"),), ((_B, "6"),), (("SMOOTHFFD_INLINE_BOXES", "0"),), (("SMOOTHFFD_INLINE_BOXES", "0"), (_B, "5")),
-            (STAGED,)] + [(STAGED,) + v for v in [
-    ((_S, "1"),), ((_S, "2"),), ((_S, "3"),), ((_S, "4"),), ((_S, "fixed"),), ((_L, "4"),), ((_L, "16"),),
-    ((_B, "4"),), ((_L, "4"), (_B, "1")), ((_L, "4"), (_B, "5"))]] + [
-    (REGS,), (REGS, (_B, "3")), (REGS, (_B, "4")), (REGS, (_L, "1")), (REGS, (_L, "8"))]
+# Lattices whose tables put the inline kernel in its global mode (tables in device memory,
+# samples from the plan), one for each of its term counts: at level 64 the grid's tables do not
+# fit in shared memory (2145 points), degree 4 and 5 have more terms than the shared tables hold.
+GLOBAL_CASES = {
+    "linear-L64": (lambda rng: bspline(rng, degree=(1, 1, 1)), 64),
+    "quadratic-L64": (lambda rng: bspline(rng, degree=(2, 2, 2)), 64),
+    "cubic-L64": (lambda rng: bspline(rng, degree=(3, 1, 2)), 64),
+    "blender-L64": (lambda rng: blender(rng, ("CATMULL_ROM", "LINEAR", "BSPLINE")), 64),
+    "degree-5-4-2": (lambda rng: bspline(rng, degree=(5, 4, 2), shape=(7, 6, 5)), 5),
+}
 
 
-@pytest.mark.parametrize("variant", VARIANTS,
-                         ids=lambda v: ",".join(f"{k.lower().replace('smoothffd_', '')}={x}" for k, x in v))
-def test_kernel_variants(variant, monkeypatch):
-    """The register-capped / lane / fit variants the benchmark compares compute the same result."""
-    for kv in variant:
-        monkeypatch.setenv(*kv)
-    rng = np.random.default_rng(21)
-    check(cube(sharp=True), bspline(rng, degree=(3, 2, 1)), level=7, path="fused")
-    check(icosphere(2), blender(rng, ("CATMULL_ROM", "LINEAR", "BSPLINE")), level=5, path="fused")
-    check(icosphere(2), bspline(rng), level=10, path="fused")  # degree 2: the C = 3 sampling kernels
+@pytest.mark.parametrize("case", sorted(GLOBAL_CASES))
+def test_inline_global_mode(case):
+    """The inline kernel's global mode serves what the shared-memory tables cannot hold, for
+    every term count it is built for (2, 3, 4 and kMaxTerms), sharp and smooth meshes."""
+    make, level = GLOBAL_CASES[case]
+    rng = np.random.default_rng(len(case))
+    for mesh in (cube(sharp=True, cuts=1), icosphere(1)):
+        lat = make(rng)
+        check(mesh, lat, level=level, path="fused")
+        plan = smoothffd.Deformer(mesh, lat, level=level, device="cpu").plan
+        assert _core.CudaEvaluator(plan, "fused").kernel == "inline (global)"
 
 
 @pytest.mark.parametrize("path", PATHS)
@@ -242,19 +245,18 @@ def test_deformer_cuda_matches_cpu():
     assert auto.device == "cuda"
 
 
-def test_repeated_frames_and_path_switch():
+def test_repeated_frames_both_paths():
     need_cublas()
     rng = np.random.default_rng(5)
     mesh = icosphere(2)
     lat = bspline(rng)
     plan = smoothffd.Deformer(mesh, lat, level=5, device="cpu").plan
-    ev = _core.CudaEvaluator(plan, "fused")
+    evs = [_core.CudaEvaluator(plan, path) for path in PATHS]
     cpu = _core.CpuEvaluator(plan)
     for i in range(4):
         lat = bspline(rng)
         vals = np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32)
-        ev.path = PATHS[i % 2]
-        pg, ng, _ = ev.evaluate(vals)
+        pg, ng, _ = evs[i % 2].evaluate(vals)
         pc, nc, _ = cpu.evaluate(vals)
         assert np.abs(pg - pc).max() <= 1e-5 * SIZE
         assert angles(ng, nc).max() <= 1e-4
@@ -277,14 +279,19 @@ def test_many_groups_over_frames():
         assert angles(ng, nc).max() <= 1e-4
 
 
-def test_env_path(monkeypatch):
+def test_path_argument(monkeypatch):
+    """The path is the constructor's argument (fused by default), and nothing else: the
+    environment variable that once chose it is not read."""
     need_cublas()
     rng = np.random.default_rng(1)
     plan = smoothffd.Deformer(icosphere(1), bspline(rng), level=2, device="cpu").plan
     monkeypatch.setenv("SMOOTHFFD_CUDA_PATH", "cublas")
-    assert _core.CudaEvaluator(plan).path == "cublas"
-    monkeypatch.setenv("SMOOTHFFD_CUDA_PATH", "fused")
     assert _core.CudaEvaluator(plan).path == "fused"
+    assert _core.CudaEvaluator(plan).kernel.startswith("inline")
+    ev = _core.CudaEvaluator(plan, "cublas")
+    assert ev.path == "cublas" and ev.kernel == "cublas"
+    with pytest.raises(AttributeError):
+        ev.path = "fused"
     with pytest.raises(ValueError, match="path"):
         _core.CudaEvaluator(plan, "tensor-cores")
 
@@ -378,22 +385,25 @@ def test_benchmark_reports_every_measure():
 
 
 @pytest.mark.skipif(os.environ.get("SMOOTHFFD_SANITIZER") != "1", reason="run under compute-sanitizer only")
-def test_sanitizer_subset(monkeypatch):
-    """Small mixed workload for compute-sanitizer (both paths, copy back, baseline; the inline
-    kernel with box polynomials and with per-sample weights)."""
+def test_sanitizer_subset():
+    """Small mixed workload for compute-sanitizer (both paths, copy back; the inline kernel in
+    its three modes: box polynomials, per-sample weights (a lattice whose boxes do not fit),
+    global (more terms than the shared tables hold, and tables too large for a 48 KB device))."""
     rng = np.random.default_rng(0)
     for path in PATHS:
         check(cube(sharp=True), bspline(rng, degree=(1, 2, 3)), level=3, path=path)
         check(icosphere(1), blender(rng, ("CATMULL_ROM", "LINEAR", "BSPLINE")), level=4, path=path)
         check(icosphere(1), bspline(rng), level=5, path=path)
-    monkeypatch.setenv("SMOOTHFFD_INLINE_BOXES", "0")
-    check(icosphere(1), bspline(rng), level=5, path="fused")
+    check(icosphere(1), bspline(rng, shape=(9, 8, 7), amount=0.03), level=4, path="fused")  # weights
+    check(icosphere(1), bspline(rng, degree=(5, 4, 2), shape=(7, 6, 5)), level=3, path="fused")  # global
+    check(icosphere(1), bspline(rng, shape=(9, 8, 7), amount=0.03), level=6, path="fused",
+          shared_memory_limit=48 * 1024)
 
 
 @pytest.mark.parametrize("path", PATHS)
-def test_high_degree_falls_back_to_staged_kernels(path):
-    """More than 4 terms an axis (degree 4 and 5): the inline kernels do not cover it, the
-    staged ones (kMaxTerms) do; the result still matches the CPU."""
+def test_high_degree(path):
+    """More than 4 terms an axis (degree 4 and 5): the inline kernel's global mode (kMaxTerms
+    terms) and the reference path; the result still matches the CPU."""
     rng = np.random.default_rng(55)
     check(icosphere(2), bspline(rng, degree=(5, 4, 2), shape=(7, 6, 5)), level=4, path=path)
 
@@ -411,19 +421,19 @@ def test_large_lattice_inline_copies_controls(path):
     assert "upload" in times
 
 
-@pytest.mark.parametrize("level,inline", [(45, True), (64, False)])
-def test_high_levels_inline_or_staged(level, inline):
+@pytest.mark.parametrize("level,shared", [(45, True), (64, False)])
+def test_high_levels(level, shared):
     """High levels: 45 still fits the inline kernel's shared tables (1081 grid points, 8 bytes
     of (s, t) each, plus the 135 boundary points' tables and list); 64 (2145 grid points) does
-    not and runs the staged kernels. Either way the result matches the CPU."""
+    not and runs its global mode. Either way one kernel, and the result matches the CPU."""
     rng = np.random.default_rng(80)
     lat = bspline(rng)
     check(icosphere(1), lat, level=level, path="fused")
     plan = smoothffd.Deformer(icosphere(1), lat, level=level, device="cpu").plan
     ev = _core.CudaEvaluator(plan, "fused")
     times = ev.evaluate_device(np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32))
-    assert ev.fused_kernel.startswith("inline") == inline
-    assert ("sample_fit_tessellate" in times) == inline and ("sampling" in times) != inline
+    assert (ev.kernel != "inline (global)") == shared and ev.kernel.startswith("inline")
+    assert "sample_fit_tessellate" in times and "sampling" not in times
 
 
 def rotated_blender(rng, angle=0.35, scale=1.4):
@@ -449,25 +459,26 @@ def test_rotated_lattice(path, mesh):
     check(MESHES[mesh](), rotated_blender(rng), level=5, path=path)
 
 
-def test_fused_kernel_choice(monkeypatch):
+def test_kernel_choice(monkeypatch):
     """The inline kernel evaluates samples from box polynomials where the boxes that hold
     samples fit in shared memory (a 5x5x5 lattice of degree 2), from per-sample weights where
-    they do not (a 9x8x7 lattice: too many boxes) or when asked, and the staged kernels beyond
-    4 terms an axis."""
+    they do not (a 9x8x7 lattice: too many boxes), and keeps its tables in device memory beyond
+    4 terms an axis; the cublas path is the reference kernels. No environment variable
+    changes the choice."""
+    need_cublas()
     rng = np.random.default_rng(81)
     mesh = icosphere(2)
 
-    def kernel(lat):
+    def kernel(lat, path="fused"):
         plan = smoothffd.Deformer(mesh, lat, level=4, device="cpu").plan
-        return _core.CudaEvaluator(plan, "fused").fused_kernel
+        return _core.CudaEvaluator(plan, path).kernel
 
+    for name in ("SMOOTHFFD_INLINE_BOXES", "SMOOTHFFD_FUSED_FIT", "SMOOTHFFD_FUSED_BLOCKS"):
+        monkeypatch.setenv(name, "0")
     assert kernel(bspline(rng)) == "inline (boxes)"
     assert kernel(bspline(rng, shape=(9, 8, 7), amount=0.03)) == "inline (weights)"
-    assert kernel(bspline(rng, degree=(5, 4, 2), shape=(7, 6, 5))) == "staged"
-    monkeypatch.setenv("SMOOTHFFD_INLINE_BOXES", "0")
-    assert kernel(bspline(rng)) == "inline (weights)"
-    monkeypatch.setenv("SMOOTHFFD_FUSED_FIT", "staged")
-    assert kernel(bspline(rng)) == "staged"
+    assert kernel(bspline(rng, degree=(5, 4, 2), shape=(7, 6, 5))) == "inline (global)"
+    assert kernel(bspline(rng), "cublas") == "cublas"
 
 
 def test_small_lattice_inline_needs_no_upload():
@@ -480,7 +491,7 @@ def test_small_lattice_inline_needs_no_upload():
     ev = _core.CudaEvaluator(plan, "fused")
     times = ev.evaluate_device(np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32))
     assert "upload" not in times and "sample_fit_tessellate" in times
-    ev.path = "cublas"
+    ev = _core.CudaEvaluator(plan, "cublas")
     times = ev.evaluate_device(np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32))
     assert "upload" in times
 
@@ -519,9 +530,9 @@ SMALLER_DEVICES = {"sm_75 (64 KB)": 64 * 1024, "sm_86/89 (99 KB)": 99 * 1024, "4
 @pytest.mark.parametrize("plan_kind", ["w1", "sharp", "large_lattice"])
 def test_smaller_device_shared_memory(plan_kind, limit):
     """The launches planned for a GPU with less shared memory a block than this one (consumer
-    GPUs: 64 KB on sm_75, 99 KB on sm_86 / sm_89): the inline kernel's table (boxes, weights
-    or the staged kernels) and blocks an SM follow the emulated limits, and the result is the
-    CPU evaluator's as on the full device."""
+    GPUs: 64 KB on sm_75, 99 KB on sm_86 / sm_89): the inline kernel's mode (boxes, weights
+    or global) and blocks an SM follow the emulated limits, and the result is the CPU
+    evaluator's as on the full device."""
     rng = np.random.default_rng(90)
     if plan_kind == "w1":
         mesh, lat, level = torus(), w1_lattice(), 10
@@ -540,16 +551,18 @@ def test_smaller_device_shared_memory(plan_kind, limit):
     assert sm["per_multiprocessor"] <= min(limit + sm["reserved_per_block"], fm["per_multiprocessor"])
     assert sm["inline_dynamic_max"] <= fm["inline_dynamic_max"]
     assert sm["inline_static"] + sm["inline_dynamic_max"] <= sm["per_block"]
-    if ev.fused_kernel.startswith("inline"):
+    if ev.kernel in ("inline (boxes)", "inline (weights)"):
         assert 0 < sm["inline_dynamic"] <= sm["inline_dynamic_max"]
         blocks = sm["inline_blocks_per_multiprocessor"]
         assert blocks >= 1
         assert blocks * (sm["inline_static"] + sm["inline_dynamic"] + sm["reserved_per_block"]) \
             <= sm["per_multiprocessor"] or blocks == 1
-    # A smaller device never gets a richer kernel than the full one.
-    order = {"inline (boxes)": 2, "inline (weights)": 1, "staged": 0}
-    assert order[ev.fused_kernel] <= order[full.fused_kernel]
-    print(plan_kind, limit, ev.fused_kernel, sm)
+    else:
+        assert ev.kernel == "inline (global)" and sm["inline_dynamic"] == 0
+    # A smaller device never gets a richer mode than the full one.
+    order = {"inline (boxes)": 2, "inline (weights)": 1, "inline (global)": 0}
+    assert order[ev.kernel] <= order[full.kernel]
+    print(plan_kind, limit, ev.kernel, sm)
 
 
 def test_shared_memory_limit_validated():

@@ -422,11 +422,12 @@ PYBIND11_MODULE(_core, m) {
            py::arg("plan"), py::arg("path") = "", py::arg("shared_memory_limit") = 0, py::keep_alive<1, 2>(),
            "shared_memory_limit: 0 (the device's own limits) or the shared memory (bytes, at least 48 KiB) "
            "a block may opt in to on a smaller GPU to emulate: the launches are planned for it (tests)")
-      .def_property("path", &CudaEvaluator::path, &CudaEvaluator::set_path,
-                    "'fused' or 'cublas' (default: $SMOOTHFFD_CUDA_PATH, else fused)")
+      .def_property_readonly("path", &CudaEvaluator::path, "'fused' or 'cublas' (the constructor's)")
       .def_property_readonly("output_bytes", &CudaEvaluator::output_bytes)
       .def_property_readonly("device_bytes", &CudaEvaluator::device_bytes)
-      .def_property_readonly("fused_kernel", &CudaEvaluator::fused_kernel)
+      .def_property_readonly("kernel", &CudaEvaluator::kernel,
+                             "what runs a frame: 'inline (boxes)', 'inline (weights)', 'inline (global)' "
+                             "(the fused path's kernel, by where its tables fit) or 'cublas'")
       .def_property_readonly(
           "shared_memory",
           [](const CudaEvaluator& ev) {

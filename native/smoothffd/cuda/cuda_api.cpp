@@ -136,20 +136,7 @@ const char* path(const sffd_cuda_evaluator* ev) {
   }
 }
 
-const char* fused_kernel(const sffd_cuda_evaluator* ev) {
-  try {
-    const std::string k = ev->ev->fused_kernel();
-    if (k == "inline (boxes)") return "inline (boxes)";
-    if (k == "inline (weights)") return "inline (weights)";
-    return "staged";
-  } catch (...) {
-    return "staged";
-  }
-}
-
-int set_path(sffd_cuda_evaluator* ev, const char* p, sffd_cuda_error* err) {
-  return guarded(err, [&] { ev->ev->set_path(p ? p : ""); });
-}
+const char* kernel(const sffd_cuda_evaluator* ev) { return ev->ev->kernel(); }
 
 uint64_t output_bytes(const sffd_cuda_evaluator* ev) { return ev->ev->output_bytes(); }
 uint64_t device_bytes(const sffd_cuda_evaluator* ev) { return ev->ev->device_bytes(); }
@@ -238,8 +225,7 @@ sffd_cuda_api make_api() noexcept {
   a.evaluate_device = evaluate_device;
   a.benchmark = benchmark;
   a.path = path;
-  a.fused_kernel = fused_kernel;
-  a.set_path = set_path;
+  a.kernel = kernel;
   a.output_bytes = output_bytes;
   a.device_bytes = device_bytes;
   a.limits = limits;

@@ -24,7 +24,7 @@
 extern "C" {
 #endif
 
-#define SFFD_CUDA_ABI_VERSION 2
+#define SFFD_CUDA_ABI_VERSION 3
 #define SFFD_CUDA_ENTRY "sffd_cuda_api_v1"
 
 /* What a failed call raises on the C++ side (cuda_loader.cpp). */
@@ -78,7 +78,7 @@ typedef struct sffd_cuda_api {
    * not (no driver, driver too old, no device, no kernel image for its architecture, ...). */
   int (*status)(char* message, size_t message_size);
 
-  /* plan: const sffd::Plan*. path: "fused", "cublas" or "" (SMOOTHFFD_CUDA_PATH, else fused).
+  /* plan: const sffd::Plan*. path: "fused", "cublas" or "" (fused).
    * shared_memory_limit: 0 (the device's own limits) or the bytes of shared memory a block
    * may opt in to on the device to emulate (at least 48 KiB; a multiprocessor then has that
    * plus the reserved 1 KiB). */
@@ -92,8 +92,8 @@ typedef struct sffd_cuda_api {
   int (*benchmark)(sffd_cuda_evaluator* ev, const float* D, int iters, sffd_cuda_times* times, sffd_cuda_error* err);
   /* Static strings. */
   const char* (*path)(const sffd_cuda_evaluator* ev);
-  const char* (*fused_kernel)(const sffd_cuda_evaluator* ev);
-  int (*set_path)(sffd_cuda_evaluator* ev, const char* path, sffd_cuda_error* err);
+  /* What runs a frame: "inline (boxes)", "inline (weights)", "inline (global)" or "cublas". */
+  const char* (*kernel)(const sffd_cuda_evaluator* ev);
   uint64_t (*output_bytes)(const sffd_cuda_evaluator* ev);
   uint64_t (*device_bytes)(const sffd_cuda_evaluator* ev);
   void (*limits)(const sffd_cuda_evaluator* ev, sffd_cuda_limits* out);

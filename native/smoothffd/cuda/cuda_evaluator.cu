@@ -218,10 +218,6 @@ __device__ __forceinline__ int div_small(int j, int d, float inv) {
   return q;
 }
 
-// Shared floats tessellate_interior needs for its coalesced stores (one point a thread): a
-// warp's 2 x 96.
-__host__ __device__ constexpr int tess_staging_floats(int threads) { return threads / 32 * 2 * 96; }
-
 // PTS consecutive points' coordinates (3 PTS floats) from dst on: two points as three 8-byte
 // stores (dst 8-byte aligned), one as three 4-byte stores. (Four points a thread, as three
 // 16-byte stores, measured 6% slower on W1: docs/benchmarks.md.)
@@ -243,7 +239,7 @@ constexpr int kCtrlStride = 32;
 
 // One patch's geometry (ctrl[q][0]) and normal (ctrl[q][1]) control points in shared memory,
 // and its unit_patch_normal fallback (the normalized sum of the corners' normal control
-// points, set before the tessellation: set_fallback_normal). Those 16 bytes also put
+// points, set by k_inline before the tessellation). Those 16 bytes also put
 // consecutive patches 4 banks apart: without them the patches of a warp sit 256 bytes apart,
 // in the same banks, and every per-patch store (one lane a patch) and every vector load that
 // spans two patches (tessellation) is an 8-way / 2-way conflict.
@@ -254,18 +250,6 @@ struct __align__(16) PatchCtrl {
   __device__ float* operator[](int i) { return i ? n : g; }
   __device__ const float* operator[](int i) const { return i ? n : g; }
 };
-
-__device__ __forceinline__ void set_fallback_normal(PatchCtrl& c) {
-  store3(c.fallback, normalized_or(load3(c.n) + load3(c.n + 3) + load3(c.n + 6), v3(0, 0, 1)));
-}
-
-// Parameters (s, t) = (b1, b2) of grid point gp, from a table of its barycentric points (a
-// float4 a point: b0, b1, b2, 0; one vector load).
-__device__ __forceinline__ void grid_st(const float4* __restrict__ bary, int gp, float& s, float& t) {
-  const float4 q = bary[gp];
-  s = q.y;
-  t = q.z;
-}
 
 // A patch field (kCtrlStride floats, 16-byte aligned, shared memory) as 10 points, read as
 // eight 16-byte vectors (instead of 30 scalar loads).
@@ -289,16 +273,6 @@ __device__ __forceinline__ void store_field(float* f, const V3 in[10]) {
 #pragma unroll
   for (int i = 0; i < kCtrlStride / 4; ++i)
     reinterpret_cast<float4*>(f)[i] = make_float4(v[4 * i], v[4 * i + 1], v[4 * i + 2], v[4 * i + 3]);
-}
-
-// Converts a patch field from Bernstein control points to the power form that eval_point
-// reads (cubic_power_form, plan/bezier.hpp), in place. The fused kernels convert each patch
-// once, after its fit, edge adjustment and fallback normal (which read the Bernstein form).
-__device__ __forceinline__ void to_power_form(float* f) {
-  V3 b[10], a[10];
-  load_field(f, b);
-  cubic_power_form(b, a);
-  store_field(f, a);
 }
 
 // Positions x and unit normals n of a patch at N grid points (s[i], t[i]) (grid_st): cg and
@@ -364,17 +338,6 @@ __device__ __forceinline__ long long render_written(const PlanView& pv, const Pa
 
 // ---------------------------------------------------------------- kernels shared by both paths
 
-__device__ __forceinline__ void sample_body(const PlanView& pv, const FrameView& fv, const float* __restrict__ D) {
-  int s = blockIdx.x * blockDim.x + threadIdx.x;
-  if (s >= pv.samples) return;
-  sample_point(pv, D, s, fv.sample_value + 3 * (long long)s, fv.sample_jacobian + 9 * (long long)s);
-  if (s < pv.sub_vertices) tessellate_position(pv, fv, s);  // input and clip vertices
-}
-
-// Without launch bounds (the compiler picks ~160 registers: 1 block of 256 an SM) and with a
-// register cap from MINB blocks of 256 an SM (SMOOTHFFD_SAMPLE_BLOCKS = 2 or 3).
-__global__ void k_sample(PlanView pv, FrameView fv, const float* __restrict__ D) { sample_body(pv, fv, D); }
-
 // sample_point (stages.hpp) with C terms an axis at compile time instead of kMaxTerms, for
 // plans whose pieces all have count <= C and degree < C: the padded terms are exact zeros
 // either way (fma(0, d, x) = x), so the result is the same as sample_point's.
@@ -389,28 +352,16 @@ __device__ __forceinline__ void sample_point_c(const PlanView& pv, const float* 
   finish_sample(pv, p, s, value, grad, F, J);
 }
 
-template <int C>
-__global__ void __launch_bounds__(256) k_sample_fixed(PlanView pv, FrameView fv, const float* __restrict__ D) {
-  int s = blockIdx.x * blockDim.x + threadIdx.x;
-  if (s >= pv.samples) return;
-  sample_point_c<C>(pv, D, s, fv.sample_value + 3 * (long long)s, fv.sample_jacobian + 9 * (long long)s);
-  if (s < pv.sub_vertices) tessellate_position(pv, fv, s);
-}
-
-// The same with a register cap from MINB blocks of 256 an SM. (An explicit MINB of 1 is not
-// the same as none: __launch_bounds__(256, 1) compiled k_sample_fixed<3> to 127 registers,
-// __launch_bounds__(256) to 74.)
+// The reference path's sampling: F and J of every sample into the frame's buffers, and the
+// positions of the sub-vertices (input and clip vertices), which are samples themselves. C
+// terms an axis (the plan's largest), registers capped by MINB blocks of 256 an SM (C = 3:
+// 4 blocks, 64 registers, measured fastest; docs/benchmarks.md's history).
 template <int C, int MINB>
-__global__ void __launch_bounds__(256, MINB) k_sample_fixed_capped(PlanView pv, FrameView fv, const float* __restrict__ D) {
+__global__ void __launch_bounds__(256, MINB) k_sample(PlanView pv, FrameView fv, const float* __restrict__ D) {
   int s = blockIdx.x * blockDim.x + threadIdx.x;
   if (s >= pv.samples) return;
   sample_point_c<C>(pv, D, s, fv.sample_value + 3 * (long long)s, fv.sample_jacobian + 9 * (long long)s);
-  if (s < pv.sub_vertices) tessellate_position(pv, fv, s);
-}
-
-template <int MINB>
-__global__ void __launch_bounds__(256, MINB) k_sample_capped(PlanView pv, FrameView fv, const float* __restrict__ D) {
-  sample_body(pv, fv, D);
+  if (s < pv.sub_vertices) tessellate_position(pv, fv, s);  // input and clip vertices
 }
 
 __global__ void k_edge(PlanView pv, FrameView fv) {
@@ -420,22 +371,10 @@ __global__ void k_edge(PlanView pv, FrameView fv) {
 
 // ---------------------------------------------------------------- fused path
 
-// Where tessellate_interior finds an interior point's (s, t) (its PTS points' at once):
-// PlanOrderST, the plan's barycentric table (PlanView::grid_bary, global memory) through the
-// walk table GridInfo::order (the staged kernels); WalkST, k_inline's table of (s, t) in walk
-// order in shared memory, whose interior starts at an even index so that a thread's two
-// points are one 16-byte load (as one float4 a point with scalar loads of s and t, the loads
-// of a warp were 5-way bank conflicts: the shared-memory pipe is k_inline's busiest unit).
-struct PlanOrderST {
-  const GridInfo* gi;
-  const float4* bary;
-  int nb;  // boundary points: the walk's interior starts at nb
-  template <int PTS>
-  __device__ __forceinline__ void operator()(int jj, float s[PTS], float t[PTS]) const {
-#pragma unroll
-    for (int k = 0; k < PTS; ++k) grid_st(bary, gi[nb + jj + k].order, s[k], t[k]);
-  }
-};
+// Where tessellate_interior finds an interior point's (s, t) (its PTS points' at once): k_inline's
+// table of (s, t) in walk order, whose interior starts at an even index so that a thread's
+// two points are one 16-byte load (as one float4 a point with scalar loads of s and t, the
+// loads of a warp were 5-way bank conflicts: the shared-memory pipe is k_inline's busiest unit).
 struct WalkST {
   const float2* st;
   int interior;  // index of the first interior point (even)
@@ -451,120 +390,39 @@ struct WalkST {
   }
 };
 
-// The interior points of a block's patches (tessellate_block, tessellate_listed), PTS
-// consecutive ones a thread (1, or 2 when no pair straddles two patches): each warp takes
-// 32 PTS consecutive points of the block's run. The thread's (patch q, interior point jj)
-// advances by a constant step instead of a division a point. ST: PlanOrderST or WalkST.
-// LAST_FIRST: the block's last warp takes the first run (when the runs do not divide evenly,
-// the warps at the end take one more: k_inline's boundary list gives its extra points to the
-// first warps). DIRECT (k_inline): each thread stores its points straight from registers
-// (PTS = 2: three 8-byte stores a field, aligned since the evaluator's buffers put the
-// interior's first output and render vertex on 16 bytes) instead of through the staging
-// buffer: no shared-memory round trip and no warp barriers, about 1% faster on W1
-// (docs/benchmarks.md); staging: shared memory for the coalesced stores otherwise.
-template <int PTS, int kThreads, bool LAST_FIRST, bool DIRECT, class ST>
-__device__ __forceinline__ void tessellate_interior(const FrameView& fv, const ST& st, const PatchCtrl* ctrl,
+// The interior points of k_inline's group of patches (tessellate_listed), PTS consecutive
+// ones a thread (1, or 2 when no pair straddles two patches): each warp takes 32 PTS
+// consecutive points of the group's run, the block's last warp the first run (when the runs
+// do not divide evenly, the warps at the end take one more: the boundary list gives its extra
+// points to the first warps). The thread's (patch q, interior point jj) advances by a
+// constant step instead of a division a point. Each thread stores its points straight from
+// registers (PTS = 2: three 8-byte stores a field, aligned since the evaluator's buffers put
+// the interior's first output and render vertex on 16 bytes): no shared-memory round trip
+// and no warp barriers, about 1% faster on W1 than staging them for coalesced stores.
+template <int PTS, int kThreads>
+__device__ __forceinline__ void tessellate_interior(const FrameView& fv, const WalkST& st, const PatchCtrl* ctrl,
                                                     int n_int, int IG, long long o0, long long render_shift,
-                                                    float* __restrict__ normals, float* staging) {
-  constexpr int kRun = 32 * PTS, kStep = PTS * kThreads, kFloats = 3 * kRun;
-  const int warp = LAST_FIRST ? kThreads / 32 - 1 - (int)threadIdx.x / 32 : threadIdx.x / 32, wl = threadIdx.x & 31;
+                                                    float* __restrict__ normals) {
+  constexpr int kRun = 32 * PTS, kStep = PTS * kThreads;
+  const int warp = kThreads / 32 - 1 - (int)threadIdx.x / 32, wl = threadIdx.x & 31;
   const float inv_ig = 1.0f / (float)IG;
   const int step_q = div_small(kStep, IG, inv_ig), step_j = kStep - step_q * IG;
   int q = div_small(warp * kRun + PTS * wl, IG, inv_ig), jj = warp * kRun + PTS * wl - q * IG;
   float* pos = fv.positions + 3 * (o0 + warp * kRun);  // the warp's run of vertices
   float* nrm = normals + 3 * (o0 + warp * kRun + render_shift);
-  float* bx = DIRECT ? nullptr : staging + warp * 2 * kFloats;
-  float* bn = DIRECT ? nullptr : bx + kFloats;
   for (int j0 = warp * kRun; j0 < n_int; j0 += kStep, pos += 3 * kStep, nrm += 3 * kStep) {
-    V3 x[PTS], n[PTS];
-#pragma unroll
-    for (int k = 0; k < PTS; ++k) x[k] = n[k] = v3(0, 0, 0);
     const bool mine = j0 + PTS * wl < n_int;
     if (mine) {
+      V3 x[PTS], n[PTS];
       float s[PTS], t[PTS];
       st.template operator()<PTS>(jj, s, t);
       eval_points<PTS>(s, t, ctrl[q][0], ctrl[q][1], load3(ctrl[q].fallback), x, n);
+      store_points<PTS>(pos + 3 * PTS * wl, x);
+      store_points<PTS>(nrm + 3 * PTS * wl, n);
     }
     q += step_q, jj += step_j;
     if (jj >= IG) jj -= IG, ++q;
-    if (DIRECT) {
-      if (mine) {
-        store_points<PTS>(pos + 3 * PTS * wl, x);
-        store_points<PTS>(nrm + 3 * PTS * wl, n);
-      }
-      continue;
-    }
-    // Coalesced stores: the warp's floats of each field go through its slice of shared memory
-    // and lane l stores floats l, l + 32, ..., so each store instruction covers 32
-    // consecutive floats (a plain store3 a lane touches every sector partially in three
-    // passes: three times the L2 write traffic). No bounds checks when the warp's run is full.
-    store_points<PTS>(bx + 3 * PTS * wl, x);
-    store_points<PTS>(bn + 3 * PTS * wl, n);
-    __syncwarp();
-    const int n3 = 3 * min(kRun, n_int - j0);
-    if (n3 == kFloats) {
-#pragma unroll
-      for (int r = 0; r < 3 * PTS; ++r) pos[wl + 32 * r] = bx[wl + 32 * r], nrm[wl + 32 * r] = bn[wl + 32 * r];
-    } else {
-#pragma unroll
-      for (int r = 0; r < 3 * PTS; ++r)
-        if (wl + 32 * r < n3) pos[wl + 32 * r] = bx[wl + 32 * r], nrm[wl + 32 * r] = bn[wl + 32 * r];
-    }
-    __syncwarp();
   }
-}
-
-
-// Tessellation of a block's PB fitted patches from shared memory (the staged kernels), one
-// thread a (patch, grid point): positions of the output vertices the patch owns, normals of
-// its render vertices. gi and bary: the plan's GridInfo and PlanView::grid_bary in global
-// memory; ctrl: the Bernstein control points, which it turns into power form. staging:
-// shared memory for the coalesced stores, tess_staging_floats floats.
-// Every thread of the block must call it (it synchronizes the block once). k_inline has its
-// own walk (tessellate_listed, inline_kernels.cuh): grid tables in walk order in shared memory
-// and a list of the boundary points each group writes.
-template <int PB, int LANES>
-__device__ __forceinline__ void tessellate_block(const PlanView& pv, const FrameView& fv, const GridInfo* __restrict__ gi,
-                                                 const float4* __restrict__ bary, PatchCtrl* ctrl, const int (*sedge)[3],
-                                                 const uint8_t* sflags, const PatchRender* srender, int base,
-                                                 long long render_shift, float* __restrict__ normals, float* staging) {
-  constexpr int kThreads = PB * LANES;
-  const int G = pv.grid, L = pv.level;
-  const int np = min(PB, pv.patches - base);
-  const long long interior0 = pv.sub_vertices + (long long)pv.edges * (L - 1);
-  const int IG = (L - 1) * (L - 2) / 2, NB = G - IG;
-  for (int q = threadIdx.x; q < np; q += kThreads) {
-    set_fallback_normal(ctrl[q]);
-    to_power_form(ctrl[q].g);
-    to_power_form(ctrl[q].n);
-  }
-  __syncthreads();
-  // Corners and edge points: one thread a (patch, point), scattered to their owners' slots.
-  const int items = np * NB;
-  const float inv_nb = 1.0f / (float)NB;
-  for (int i = threadIdx.x; i < items; i += kThreads) {
-    const int q = div_small(i, NB, inv_nb), w = i - q * NB, gp = gi[w].order;
-    GridInfo t = gi[gp];
-    uint8_t f = sflags[q];
-    long long o = -1;
-    if (t.kind == 1 && ((f >> t.which) & 1)) {
-      int m = ((f >> (3 + t.which)) & 1) ? L - t.step : t.step;
-      o = pv.sub_vertices + (long long)sedge[q][t.which] * (L - 1) + (m - 1);
-    }
-    long long r = render_written(pv, srender[q], t, t.kind == 1 && ((f >> (3 + t.which)) & 1), -1, render_shift);
-    if (r < 0 && o < 0) continue;
-    V3 x, n;
-    float s, tt;
-    grid_st(bary, gp, s, tt);
-    eval_point(s, tt, ctrl[q][0], ctrl[q][1], load3(ctrl[q].fallback), x, n);
-    if (r >= 0) store3(normals + 3 * r, n);
-    if (o >= 0) store3(fv.positions + 3 * o, x);
-  }
-  // Interior points: the block's are one contiguous run of output (and render) vertices.
-  if (IG == 0) return;
-  const long long o0 = interior0 + (long long)base * IG;
-  tessellate_interior<1, kThreads, false, false>(fv, PlanOrderST{gi, bary, NB}, ctrl, np * IG, IG, o0, render_shift,
-                                                normals, staging);
 }
 
 // Sum of v over the LANES lanes of a patch (a power of two, within one warp), in every lane.
@@ -577,158 +435,6 @@ __device__ __forceinline__ V3 lanes_sum(V3 v) {
     v.z += __shfl_xor_sync(0xffffffffu, v.z, off);
   }
   return v;
-}
-
-// Patch p's tables for tessellate_block: its edges, the flags (bits 0-2: owns edge k's
-// points, bits 3-5: edge k reversed) and its render-vertex table.
-__device__ __forceinline__ void load_patch_tables(const PlanView& pv, const uint8_t* __restrict__ owns,
-                                                  const PatchRender* __restrict__ prender, int p, int* sedge,
-                                                  uint8_t& sflags, PatchRender& srender) {
-  uint8_t f = owns[p];
-  for (int k = 0; k < 3; ++k) {
-    sedge[k] = pv.patch_edge[3 * p + k];
-    f |= uint8_t(pv.patch_edge_reversed[3 * p + k] ? 8u << k : 0u);
-  }
-  sflags = f;
-  srender = prender[p];
-}
-
-// LANES threads a patch fit it (columns split among them, partial sums combined by warp
-// shuffles) into shared memory; then the block tessellates its PB patches, one thread a
-// (patch, grid point), straight from shared memory.
-template <int PB, int LANES, int MINB>
-__global__ void __launch_bounds__(PB* LANES, MINB)
-    k_fit_tessellate(PlanView pv, FrameView fv, const GridInfo* __restrict__ gi, const uint8_t* __restrict__ owns,
-                     const PatchRender* __restrict__ prender, long long render_shift,
-                     float* __restrict__ normals) {
-  static_assert(32 % LANES == 0, "lanes of a patch must share a warp");
-  __shared__ PatchCtrl ctrl[PB];
-  __shared__ int sedge[PB][3];
-  __shared__ uint8_t sflags[PB];  // bits 0-2: owns edge k; bits 3-5: edge k reversed
-  __shared__ PatchRender srender[PB];
-  const int base = blockIdx.x * PB;
-  const int lp = threadIdx.x / LANES, lane = threadIdx.x % LANES;
-  const int p = base + lp;
-  const int K = pv.columns;
-  V3 g[10], nn[10];
-#pragma unroll
-  for (int r = 0; r < 10; ++r) g[r] = nn[r] = v3(0, 0, 0);
-  if (p < pv.patches) {
-    V3 rn[3];
-    for (int k = 0; k < 3; ++k) rn[k] = load3(pv.patch_render_normal + 9 * (long long)p + 3 * k);
-    for (int k = lane; k < K; k += LANES) {
-      V3 x, n;
-      fit_column(pv, fv, p, k, rn, x, n);
-      if (k < K - 9) {  // M_r is zero there except in the centre row (as in fit_patch_into)
-        float m = pv.fit_matrix[kCentre * K + k];
-        g[kCentre] += m * x;
-        nn[kCentre] += m * n;
-      } else {
-#pragma unroll
-        for (int r = 0; r < 10; ++r) {
-          float m = pv.fit_matrix[r * K + k];
-          g[r] += m * x;
-          nn[r] += m * n;
-        }
-      }
-    }
-  }
-#pragma unroll
-  for (int off = 1; off < LANES; off <<= 1)
-#pragma unroll
-    for (int r = 0; r < 10; ++r) {
-      g[r].x += __shfl_xor_sync(0xffffffffu, g[r].x, off);
-      g[r].y += __shfl_xor_sync(0xffffffffu, g[r].y, off);
-      g[r].z += __shfl_xor_sync(0xffffffffu, g[r].z, off);
-      nn[r].x += __shfl_xor_sync(0xffffffffu, nn[r].x, off);
-      nn[r].y += __shfl_xor_sync(0xffffffffu, nn[r].y, off);
-      nn[r].z += __shfl_xor_sync(0xffffffffu, nn[r].z, off);
-    }
-  if (p < pv.patches && lane == 0) {
-    finish_patch(pv, fv, p, g);
-#pragma unroll
-    for (int r = 0; r < 10; ++r) {
-      store3(ctrl[lp][0] + 3 * r, g[r]);
-      store3(ctrl[lp][1] + 3 * r, nn[r]);
-    }
-    load_patch_tables(pv, owns, prender, p, sedge[lp], sflags[lp], srender[lp]);
-  }
-  __syncthreads();
-  __shared__ float staging[tess_staging_floats(PB * LANES)];
-  tessellate_block<PB, LANES>(pv, fv, gi, reinterpret_cast<const float4*>(pv.grid_bary), ctrl, sedge, sflags, srender,
-                              base, render_shift, normals, staging);
-}
-
-// Same fit and tessellation with fewer live registers (the default): the LANES threads of a
-// patch accumulate only the centre row over the free columns (M_r's boundary rows are zero
-// there, as in fit_patch_into), stage the deformed samples and normals of the 9 constraint
-// columns in shared memory, then share the 10 x 6 products of M_r's last 9 columns among
-// them; finish_patch (stages.hpp) runs on one lane from shared memory. About half the
-// registers of k_fit_tessellate (20 control points live per lane), so more blocks an SM hide
-// the latency of the sample gathers.
-template <int PB, int LANES, int MINB>
-__global__ void __launch_bounds__(PB* LANES, MINB)
-    k_fit_tessellate_staged(PlanView pv, FrameView fv, const GridInfo* __restrict__ gi,
-                            const uint8_t* __restrict__ owns, const PatchRender* __restrict__ prender,
-                            long long render_shift, float* __restrict__ normals) {
-  static_assert(32 % LANES == 0, "lanes of a patch must share a warp");
-  __shared__ PatchCtrl ctrl[PB];
-  __shared__ float stage[PB][9][6];  // constraint column j: x (0-2), n (3-5)
-  __shared__ float mcon[10][9];      // M_r's last 9 columns
-  __shared__ int sedge[PB][3];
-  __shared__ uint8_t sflags[PB];  // bits 0-2: owns edge k; bits 3-5: edge k reversed
-  __shared__ PatchRender srender[PB];
-  const int base = blockIdx.x * PB;
-  const int lp = threadIdx.x / LANES, lane = threadIdx.x % LANES;
-  const int p = base + lp;
-  const int K = pv.columns, K0 = K - 9;
-  for (int i = threadIdx.x; i < 90; i += PB * LANES) mcon[i / 9][i % 9] = pv.fit_matrix[(i / 9) * K + K0 + i % 9];
-  V3 gc = v3(0, 0, 0), nc = v3(0, 0, 0);  // centre row over the free columns
-  if (p < pv.patches) {
-    V3 rn[3];
-    for (int k = 0; k < 3; ++k) rn[k] = load3(pv.patch_render_normal + 9 * (long long)p + 3 * k);
-    for (int k = lane; k < K; k += LANES) {
-      V3 x, n;
-      fit_column(pv, fv, p, k, rn, x, n);
-      if (k < K0) {
-        float m = pv.fit_matrix[kCentre * K + k];
-        gc += m * x;
-        nc += m * n;
-      } else {
-        float* st = stage[lp][k - K0];
-        store3(st, x);
-        store3(st + 3, n);
-      }
-    }
-  }
-  gc = lanes_sum<LANES>(gc);
-  nc = lanes_sum<LANES>(nc);
-  __syncthreads();  // stage and mcon written
-  if (p < pv.patches) {
-    // Output j = 6 r + c (row r, component c: 0-2 geometry, 3-5 normal), lanes interleaved.
-    for (int j = lane; j < 60; j += LANES) {
-      const int r = j / 6, c = j - 6 * r;
-      float acc = 0.0f;
-      if (r == kCentre) acc = c == 0 ? gc.x : c == 1 ? gc.y : c == 2 ? gc.z : c == 3 ? nc.x : c == 4 ? nc.y : nc.z;
-#pragma unroll
-      for (int q = 0; q < 9; ++q) acc += mcon[r][q] * stage[lp][q][c];
-      ctrl[lp][c / 3][3 * r + c % 3] = acc;
-    }
-  }
-  __syncwarp();
-  if (p < pv.patches && lane == 0) {
-    V3 g[10];
-#pragma unroll
-    for (int r = 0; r < 10; ++r) g[r] = load3(ctrl[lp][0] + 3 * r);
-    finish_patch(pv, fv, p, g);
-#pragma unroll
-    for (int r = 0; r < 10; ++r) store3(ctrl[lp][0] + 3 * r, g[r]);
-    load_patch_tables(pv, owns, prender, p, sedge[lp], sflags[lp], srender[lp]);
-  }
-  __syncthreads();
-  __shared__ float staging[tess_staging_floats(PB * LANES)];
-  tessellate_block<PB, LANES>(pv, fv, gi, reinterpret_cast<const float4*>(pv.grid_bary), ctrl, sedge, sflags, srender,
-                              base, render_shift, normals, staging);
 }
 
 #include "smoothffd/cuda/inline_kernels.cuh"
@@ -821,12 +527,7 @@ __global__ void k_baseline(PlanView pv, const float* __restrict__ D, const float
 
 enum Path { kFused = 0, kCublas = 1 };
 
-Path parse_path(const std::string& s) {
-  std::string v = s;
-  if (v.empty()) {
-    const char* env = std::getenv("SMOOTHFFD_CUDA_PATH");
-    v = env ? env : "";
-  }
+Path parse_path(const std::string& v) {
   if (v.empty() || v == "fused") return kFused;
   if (v == "cublas") return kCublas;
   throw std::invalid_argument("CUDA path: expected 'fused' or 'cublas', got '" + v + "'");
@@ -1087,9 +788,28 @@ bool constraint_columns_as_expected(const Plan& p) {
 }
 
 
+// The terms an axis the kernels are instantiated for: the plan's largest term count rounded up.
+int kernel_terms(int max_terms) { return max_terms <= 2 ? 2 : max_terms <= 4 ? max_terms : kMaxTerms; }
+
+// Calls f(std::integral_constant<int, C>) for the terms of kernel_terms.
+template <class F>
+void with_terms(int C, F&& f) {
+  switch (C) {
+    case 2: return f(std::integral_constant<int, 2>{});
+    case 3: return f(std::integral_constant<int, 3>{});
+    case 4: return f(std::integral_constant<int, 4>{});
+    default: return f(std::integral_constant<int, kMaxTerms>{});
+  }
+}
+
+// Register caps (blocks of the kernel an SM): k_inline 4 blocks of 128 with 3 terms (128
+// registers, no spills; 5 blocks spilled and measured 6% slower), 2 with 2 or 4, 1 beyond;
+// the reference path's sampling kernel (256 threads) 4 blocks up to 3 terms, then 3, then 2.
+constexpr int inline_min_blocks(int C) { return C == 3 ? 4 : C <= 4 ? 2 : 1; }
+constexpr int sample_min_blocks(int C) { return C <= 3 ? 4 : C == 4 ? 3 : 2; }
+
 struct CudaEvaluator::Impl {
   Path path = kFused;
-  int fused_lanes = 0;  // threads fitting one patch (SMOOTHFFD_FUSED_LANES); 0: the fit's default
   DeviceArena arena;
   PlanView pv{};
   FrameView fv{};
@@ -1097,29 +817,13 @@ struct CudaEvaluator::Impl {
   uint8_t* owns = nullptr;
   PatchRender* prender = nullptr;  // P
   long long render_shift = 0;      // R - N
-  // Sampling kernel (SMOOTHFFD_SAMPLE_BLOCKS): 0 (default) k_sample_fixed<C> with C = the
-  // plan's largest term count when C <= 4, else as 3, except C = 3 (degree 2), which runs
-  // k_sample_fixed_capped<3, 4> (64 registers, measured faster); "fixed" (-1): always the
-  // uncapped k_sample_fixed<C>; 1 k_sample (no register cap); 2, 3 k_sample_capped<MINB>;
-  // 4 as the default. See docs/benchmarks.md for the measured variants.
-  int sample_blocks = 0;
-  int max_terms = 6;               // largest count / degree + 1 over the plan's pieces
-  // Fit in the fused kernel (SMOOTHFFD_FUSED_FIT): -1 (default, "inline") k_inline, samples
-  // evaluated inside the fit (lanes and register caps: see run_inline_c) when inline_ok,
-  // else as "staged";
-  // 0 ("staged") k_sample + k_edge + k_fit_tessellate_staged (SMOOTHFFD_FUSED_LANES 8
-  // (default, MINB 1 or 4), 16 (MINB 1) or 4 (SMOOTHFFD_FUSED_BLOCKS = MINB 1, 4 (default)
-  // or 5)); 1 ("regs") k_fit_tessellate, 20 control points in registers (LANES 1, 4
-  // (default), 8; MINB 1, 3, 4).
-  int fused_fit = -1;
-  int fused_blocks = 0;            // 0: the default of the chosen fit (see above)
-  // Inline path tables: usable when the plan has at most 4 terms an axis, its lattice tables
-  // fit in shared memory and the constraint columns are where k_inline expects them.
-  bool inline_ok = false;
-  int grid_env = 0;  // SMOOTHFFD_INLINE_GRID: k_inline blocks (experiments; 0: as many as fit)
+  int max_terms = kMaxTerms;       // largest count / degree + 1 over the plan's pieces
+  // The inline kernel for this plan: its InlineMode (-1: none, the fused path then runs the
+  // reference kernels) and terms an axis; why the shared-memory modes do not serve the plan.
+  int inline_mode = -1, inline_terms = 0;
+  std::string inline_why;
   InlineArgs inline_args{};
-  int box_env = -1;  // SMOOTHFFD_INLINE_BOXES=0: the per-sample weights even where boxes fit
-  std::vector<int> inline_grid;  // resident blocks of each k_inline instantiation (persistent grid)
+  int inline_grid = 0;             // resident blocks of the inline kernel (persistent grid)
   int* loose = nullptr;            // sub-vertices in no patch
   int loose_count = 0;
   float* D = nullptr;
@@ -1176,30 +880,22 @@ struct CudaEvaluator::Impl {
     CKB(api.set_workspace(cublas, cublas_ws, 32u << 20));
   }
 
-  // The inline kernel that run_inline_c launches for this plan: C terms an axis and its MINB
-  // (the same choice as there); its static shared memory (the larger of boxes / weights).
-  template <int C, int MINB>
-  static size_t inline_static_as() {
-    cudaFuncAttributes a{}, b{};
-    CK(cudaFuncGetAttributes(&a, k_inline<C, true, 32, 4, MINB>));
-    CK(cudaFuncGetAttributes(&b, k_inline<C, false, 32, 4, MINB>));
-    return std::max(a.sharedSizeBytes, b.sharedSizeBytes);
-  }
+  // The static shared memory of the inline kernels this plan may run (the modes' static
+  // tables are the same; the largest, to be safe).
   template <int C>
-  size_t inline_static_c() const {
-    const int minb = fused_blocks > 0 ? fused_blocks : 4;
-    if constexpr (C != 3) {
-      (void)minb;
-      return inline_static_as<C, 2>();
-    } else {
-      if (minb == 4) return inline_static_as<C, 4>();
-      if (minb == 6) return inline_static_as<C, 6>();
-      return inline_static_as<C, 5>();
+  static size_t inline_static_as() {
+    cudaFuncAttributes a{}, b{}, g{};
+    if constexpr (C <= 4) {
+      CK(cudaFuncGetAttributes(&a, k_inline<C, kInlineBoxes, 32, 4, inline_min_blocks(C)>));
+      CK(cudaFuncGetAttributes(&b, k_inline<C, kInlineWeights, 32, 4, inline_min_blocks(C)>));
     }
+    CK(cudaFuncGetAttributes(&g, k_inline<C, kInlineGlobal, 32, 4, inline_min_blocks(C)>));
+    return std::max({a.sharedSizeBytes, b.sharedSizeBytes, g.sharedSizeBytes});
   }
   size_t inline_static() const {
-    if (max_terms > 4) return 0;  // the staged kernels
-    return max_terms <= 2 ? inline_static_c<2>() : max_terms == 3 ? inline_static_c<3>() : inline_static_c<4>();
+    size_t st = 0;
+    with_terms(kernel_terms(max_terms), [&](auto c) { st = inline_static_as<decltype(c)::value>(); });
+    return st;
   }
 
   // The device's limits (or the emulated device's) and the inline kernel's dynamic budget:
@@ -1238,8 +934,10 @@ struct CudaEvaluator::Impl {
     lim.inline_dynamic_max = (int64_t)inline_dyn_max;
   }
 
-  // The inline path's tables (InlineArgs, inline_kernels.cuh), corner ownership and loose
-  // vertices, and whether the path applies. owns and pr: the tessellation's per-patch tables.
+  // The inline kernel's tables (InlineArgs, inline_kernels.cuh), corner ownership and loose
+  // vertices, and its mode for this plan (inline_mode): the lattice tables in shared memory
+  // where they fit (boxes, else the per-sample weights), else in device memory (global).
+  // owns and pr: the tessellation's per-patch tables.
   void build_inline_tables(const Plan& p, const TessellationTables& tt, const std::vector<GridInfo>& gi,
                            const std::vector<uint8_t>& owns, const std::vector<PatchRender>& pr) {
     const int points = p.dims[0] * p.dims[1] * p.dims[2], n_pieces = (int)p.pieces.size();
@@ -1247,6 +945,12 @@ struct CudaEvaluator::Impl {
     ia = InlineArgs{};
     ia.points = points;
     ia.n_pieces = n_pieces;
+    inline_mode = -1;
+    inline_terms = kernel_terms(max_terms);
+    if (!constraint_columns_as_expected(p)) {
+      inline_why = "the plan's constraint columns are not where the inline kernel reads them";
+      return;
+    }
     // The boxes that hold samples, numbered in order of first use; box_of[s]: sample s's.
     std::vector<uint32_t> box_of((size_t)p.samples);
     std::vector<int4> box_list;
@@ -1262,23 +966,11 @@ struct CudaEvaluator::Impl {
         box_of[s] = it.first->second;
       }
     }
-    const int C = max_terms <= 2 ? 2 : max_terms == 3 ? 3 : 4;  // run_inline's kernels
     const int interior_points = (p.level - 1) * (p.level - 2) / 2, boundary_points = p.grid - interior_points;
-    ia.list_stride = (32 * boundary_points + 7) / 8 * 8;
     ia.walk_boundary = boundary_points;
     ia.st_interior = (boundary_points + 1) / 2 * 2;
     ia.st_count = ia.st_interior + interior_points;
-    ia.box_count = ia.boxes = (int)box_list.size();
-    // The device's budget (plan_limits): boxes where their polynomials fit, else the
-    // per-sample weights, else (below) the staged kernels.
-    if (ia.shared_bytes(p.columns, C) > inline_dyn_max || points > kBoxPoints || box_env == 0)
-      ia.boxes = 0;  // the per-sample weights
-    inline_ok = max_terms <= 4 && n_pieces < 1024 && ia.shared_bytes(p.columns, C) <= inline_dyn_max &&
-                boundary_points <= 2048 &&  // the list's 11 bits of walk position
-                ia.box_count <= 256 &&    // InlinePatch::box, a byte
-                p.columns - 9 <= kMaxInlineGrid && constraint_columns_as_expected(p);
-    if (!inline_ok) return;
-    ia.box_list = arena.upload(box_list);
+    ia.box_count = (int)box_list.size();
     // Constraint columns that are grid points with the same sample in every patch.
     const int K = p.columns, K0 = K - 9;
     ColumnMap cm{};
@@ -1299,10 +991,21 @@ struct CudaEvaluator::Impl {
       else
         evaluated.push_back(K0 + j);
     }
-    if ((int)evaluated.size() > kMaxInlineColumns) {
-      inline_ok = false;
-      return;
-    }
+    if (K0 > kMaxInlineGrid || (int)evaluated.size() > kMaxInlineColumns)
+      throw std::logic_error("CudaEvaluator: more fitting columns than the fitting degree allows");
+    // The shared-memory modes: at most 4 terms an axis, every piece in the boxes' 10 bits,
+    // the boundary list's 11 bits of walk position, InlinePatch::box (a byte a column, an
+    // index into at most 256 boxes).
+    if (max_terms > 4)
+      inline_why = "more than 4 terms an axis";
+    else if (n_pieces >= 1024)
+      inline_why = "1024 or more axis pieces";
+    else if (boundary_points > 2048)
+      inline_why = "more than 2048 boundary points a patch";
+    else if (ia.box_count > 256)
+      inline_why = "more than 256 lattice boxes hold samples";
+    else if ((int)evaluated.size() > kMaxBoxColumns)
+      inline_why = "more columns a patch than the patch records hold";
     // Where each column's sample lies (InlineColumn): its barycentric point has exactly 1 at a
     // corner and exactly 0 at the corner opposite an edge; the edge parameter is the plan's
     // numerator over 3n, from either end.
@@ -1328,8 +1031,8 @@ struct CudaEvaluator::Impl {
     // The kernel's order of the evaluated columns: corners, edge points, interior points.
     auto kind = [&](int k) { return col[k].corner >= 0 ? 0 : col[k].edge >= 0 ? 1 : 2; };
     std::stable_sort(evaluated.begin(), evaluated.end(), [&](int a, int b) { return kind(a) < kind(b); });
-    for (size_t i = 0; i < evaluated.size(); ++i) cm.order[i] = int8_t(evaluated[i]);
-    cm.n_cols = int8_t(evaluated.size());
+    for (size_t i = 0; i < evaluated.size(); ++i) cm.order[i] = uint8_t(evaluated[i]);
+    cm.n_cols = uint8_t(evaluated.size());
     ia.column_map = arena.upload(std::vector<ColumnMap>{cm});
     // M_r's last 9 columns, and the sum of its six edge rows in the order finish_patch_from
     // adds the fitted edge control points (edge k: the point next to corner k, then k + 1).
@@ -1341,30 +1044,31 @@ struct CudaEvaluator::Impl {
         s += ia.mrow[edge_control_index(k, false)][q] + ia.mrow[edge_control_index(k, true)][q];
       ia.mrow[10][q] = s;
     }
-    // Axis pieces in the kernel's form: t = dot(map.xyz, p) + map.w.
+    // Axis pieces in the kernel's form: t = dot(map.xyz, p) + map.w, the coefficients (zero
+    // beyond the piece's own) and each term's offset in the control values.
     const int stride[3] = {p.dims[1] * p.dims[2], p.dims[2], 1};
     std::vector<InlinePiece> pcs((size_t)n_pieces);
+    std::vector<InlinePieceWide> wide((size_t)n_pieces);
     for (int a = 0; a < 3; ++a) {
       const int end = a < 2 ? p.axis_offset[a + 1] : n_pieces;
       for (int i = p.axis_offset[a]; i < end; ++i) {
         const AxisPieceF& src = p.pieces[i];
-        InlinePiece& d = pcs[i];
+        InlinePieceWide& d = wide[i];
         const float* m = p.param_map + 4 * a;
         const double s = src.inv_scale;
         d.map = src.degree == 0 ? make_float4(0, 0, 0, 0)
                                 : make_float4((float)(m[0] * s), (float)(m[1] * s), (float)(m[2] * s),
                                               (float)(((double)m[3] - src.origin) * s));
-        float c[4][4] = {};
-        int o[4] = {0, 0, 0, 0};
-        for (int k = 0; k < 4 && k < kMaxTerms; ++k) {
-          for (int q = 0; q < 4 && q < kMaxTerms; ++q) c[k][q] = src.coef[k][q];
-          o[k] = src.index[k] * stride[a];
+        for (int k = 0; k < kMaxTerms; ++k) {
+          for (int q = 0; q < kMaxTerms; ++q) d.coef[k][q] = src.coef[k][q];
+          d.off[k] = src.index[k] * stride[a];
         }
-        for (int k = 0; k < 4; ++k) d.coef[k] = make_float4(c[k][0], c[k][1], c[k][2], c[k][3]);
-        d.off = make_int4(o[0], o[1], o[2], o[3]);
+        InlinePiece& n = pcs[i];
+        n.map = d.map;
+        for (int k = 0; k < 4; ++k) n.coef[k] = make_float4(d.coef[k][0], d.coef[k][1], d.coef[k][2], d.coef[k][3]);
+        n.off = make_int4(d.off[0], d.off[1], d.off[2], d.off[3]);
       }
     }
-    ia.pieces = arena.upload(pcs);
     std::vector<uint8_t> mine((size_t)p.patches, 0);
     std::vector<char> seen((size_t)p.sub_vertices, 0);
     for (int q = 0; q < p.patches; ++q)
@@ -1381,10 +1085,8 @@ struct CudaEvaluator::Impl {
     loose_count = (int)lv.size();
     if (loose_count) loose = arena.upload(lv);
     std::vector<InlinePatch> rec = build_patch_records(p, owns, pr, mine);
-    if (!place_samples(p, col, evaluated, box_of, rec)) {
-      inline_ok = false;
-      return;
-    }
+    if (inline_why.empty() && !place_samples(p, col, evaluated, box_of, rec))
+      inline_why = "a sample is not where the patch's corners place it";
     // The walk's (s, t) table (WalkST), an even number of entries (copied as 16-byte pieces),
     // and its boundary points' GridInfo.
     std::vector<float2> st((size_t)(ia.st_count + 1) / 2 * 2, make_float2(0.0f, 0.0f));
@@ -1397,10 +1099,35 @@ struct CudaEvaluator::Impl {
     }
     ia.grid_st = arena.upload(st);
     ia.grid_walk = arena.upload(std::vector<GridInfo>(walk.begin(), walk.begin() + boundary_points));
+    // The mode: the boxes where their polynomials fit the device's budget (plan_limits), else
+    // the per-sample weights, else the tables in device memory.
+    const int C = inline_terms;
+    if (inline_why.empty()) {
+      ia.list_stride = (32 * boundary_points + 7) / 8 * 8;
+      ia.boxes = ia.box_count;
+      if (points <= kBoxPoints && ia.shared_bytes(K, C) <= inline_dyn_max) {
+        inline_mode = kInlineBoxes;
+      } else {
+        ia.boxes = 0;
+        if (ia.shared_bytes(K, C) <= inline_dyn_max)
+          inline_mode = kInlineWeights;
+        else
+          inline_why = "the lattice and grid tables do not fit in shared memory";
+      }
+    }
+    if (inline_mode < 0) {
+      inline_mode = kInlineGlobal;
+      ia.boxes = ia.box_count = ia.list_stride = 0;
+      ia.pieces_wide = arena.upload(wide);
+      ia.patch_rec = arena.upload(rec);
+      return;
+    }
+    ia.box_list = arena.upload(box_list);
+    ia.pieces = arena.upload(pcs);
     // Each group's boundary list: the (patch, walk position) pairs that write a position or a
     // normal, in the order of the full walk (so neighbouring threads still store neighbouring
     // points of an edge).
-    const int NB = p.grid - (p.level - 1) * (p.level - 2) / 2;
+    const int NB = boundary_points;
     const long long groups = blocks_for(p.patches, 32);
     std::vector<uint16_t> list((size_t)groups * ia.list_stride, 0);
     for (long long g = 0; g < groups; ++g) {
@@ -1425,53 +1152,34 @@ struct CudaEvaluator::Impl {
 
   // Whether a frame of the inline path passes the control values as launch parameters
   // (InlineControls) instead of copying them to the device first.
-  bool inline_params() const { return nD <= 3 * (size_t)kParamPoints && loose_count == 0; }
-
-  // One k_inline launch: a persistent grid of as many blocks as fit on the device at once
-  // (queried once per instantiation; `slot` indexes inline_grid), each taking groups of 32
-  // patches until none is left.
-  template <int C, int MINB>
-  void launch_inline(int slot, size_t smem, const InlineControls& dp) {
-    if (inline_args.boxes > 0)
-      launch_inline_as<C, true, MINB>(2 * slot, smem, dp);
-    else
-      launch_inline_as<C, false, MINB>(2 * slot + 1, smem, dp);
+  bool inline_params() const {
+    return inline_mode != kInlineGlobal && nD <= 3 * (size_t)kParamPoints && loose_count == 0;
   }
+  // Whether this frame runs the inline kernel (else the reference kernels).
+  bool inline_path() const { return path == kFused && inline_mode >= 0; }
 
-  template <int C, bool BOXES, int MINB>
-  void launch_inline_as(int slot, size_t smem, const InlineControls& dp) {
-    auto kern = k_inline<C, BOXES, 32, 4, MINB>;
-    if (inline_grid.size() <= (size_t)slot) inline_grid.resize(slot + 1, 0);
-    if (inline_grid[slot] == 0) {
-      int per_sm = 0, sms = 0, dev = 0;
-      CK(cudaGetDevice(&dev));
-      CK(cudaDeviceGetAttribute(&sms, cudaDevAttrMultiProcessorCount, dev));
-      // Opt in to the largest table any plan may bring on this device (a per-function
-      // setting, shared by every evaluator: the real device's budget, also when this one
-      // emulates a smaller device), then ask how many blocks of this plan's size fit an SM.
-      CK(cudaFuncSetAttribute(kern, cudaFuncAttributeMaxDynamicSharedMemorySize, (int)inline_dyn_device));
-      CK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&per_sm, kern, 128, smem));
-      if (shared_memory_limit > 0) {  // the emulated device's multiprocessor holds fewer
-        cudaFuncAttributes fa{};
-        CK(cudaFuncGetAttributes(&fa, kern));
-        const int64_t block = (int64_t)fa.sharedSizeBytes + (int64_t)smem + lim.reserved_per_block;
-        per_sm = std::min<int>(per_sm, (int)(lim.per_multiprocessor / block));
+  // The inline kernel's launch: a persistent grid of as many blocks as fit on the device at
+  // once (queried at the first launch), each taking groups of 32 patches until none is left;
+  // plus, first, one for the loose vertices when the mesh has any.
+  template <class Mark>
+  void run_inline(Mark& mark) {
+    with_terms(inline_terms, [&](auto c) {
+      constexpr int C = decltype(c)::value;
+      if (inline_mode == kInlineGlobal)
+        run_inline_as<C, kInlineGlobal>(mark);
+      else if constexpr (C <= 4) {
+        if (inline_mode == kInlineBoxes)
+          run_inline_as<C, kInlineBoxes>(mark);
+        else
+          run_inline_as<C, kInlineWeights>(mark);
       }
-      lim.inline_blocks_per_multiprocessor = std::max(1, per_sm);
-      inline_grid[slot] = std::max(1, per_sm) * std::max(1, sms);
-    }
-    InlineArgs ia = inline_args;
-    ia.groups = (int)blocks_for(pv.patches, 32);
-    ia.D = inline_params() ? nullptr : D;
-    const int grid = std::min(ia.groups, grid_env > 0 ? grid_env : inline_grid[slot]);
-    kern<<<grid, 128, smem, stream>>>(pv, fv, ia, dp, render_shift, normals);
+    });
   }
 
-  // The inline fused path (see fused_fit and inline_kernels.cuh): one kernel, plus one for
-  // loose vertices when the mesh has any.
-  template <int C, class Mark>
-  void run_inline_c(Mark& mark) {
-    const size_t smem = inline_args.shared_bytes(pv.columns, C);
+  template <int C, int MODE, class Mark>
+  void run_inline_as(Mark& mark) {
+    auto kern = k_inline<C, MODE, 32, 4, inline_min_blocks(C)>;
+    const size_t smem = MODE == kInlineGlobal ? 0 : inline_args.shared_bytes(pv.columns, C);
     InlineControls dp;
     if (inline_params()) std::memcpy(dp.v, h_D.ptr, nD * sizeof(float));
     if (loose_count > 0) {
@@ -1481,71 +1189,45 @@ struct CudaEvaluator::Impl {
     }
     mark("sample_fit_tessellate");
     if (pv.patches > 0) {
-      // 4 lanes a patch, 32 patches a block of 128. For C = 3 the register cap comes from
-      // MINB blocks an SM: 4 (128 registers, no spills), with box polynomials and with the
-      // per-sample weights (with 5, 96 registers, the weights spill: 6% slower); measured
-      // fastest (docs/benchmarks.md); SMOOTHFFD_FUSED_BLOCKS = 4, 5 or 6 for comparison. C = 2
-      // and 4 run MINB 2.
-      const int minb = fused_blocks > 0 ? fused_blocks : 4;
-      if constexpr (C != 3)
-        launch_inline<C, 2>(0, smem, dp);
-      else if (minb == 4)
-        launch_inline<C, 4>(1, smem, dp);
-      else if (minb == 6)
-        launch_inline<C, 6>(2, smem, dp);
-      else
-        launch_inline<C, 5>(3, smem, dp);
+      if (inline_grid == 0) {
+        int per_sm = 0, sms = 0, dev = 0;
+        CK(cudaGetDevice(&dev));
+        CK(cudaDeviceGetAttribute(&sms, cudaDevAttrMultiProcessorCount, dev));
+        // Opt in to the largest table any plan may bring on this device (a per-function
+        // setting, shared by every evaluator: the real device's budget, also when this one
+        // emulates a smaller device), then ask how many blocks of this plan's size fit an SM.
+        if (MODE != kInlineGlobal)
+          CK(cudaFuncSetAttribute(kern, cudaFuncAttributeMaxDynamicSharedMemorySize, (int)inline_dyn_device));
+        CK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&per_sm, kern, 128, smem));
+        if (shared_memory_limit > 0) {  // the emulated device's multiprocessor holds fewer
+          cudaFuncAttributes fa{};
+          CK(cudaFuncGetAttributes(&fa, kern));
+          const int64_t block = (int64_t)fa.sharedSizeBytes + (int64_t)smem + lim.reserved_per_block;
+          per_sm = std::min<int>(per_sm, (int)(lim.per_multiprocessor / block));
+        }
+        lim.inline_blocks_per_multiprocessor = std::max(1, per_sm);
+        inline_grid = std::max(1, per_sm) * std::max(1, sms);
+      }
+      InlineArgs ia = inline_args;
+      ia.groups = (int)blocks_for(pv.patches, 32);
+      ia.D = inline_params() ? nullptr : D;
+      kern<<<std::min(ia.groups, inline_grid), 128, smem, stream>>>(pv, fv, ia, dp, render_shift, normals);
       CK_LAUNCH(k_inline);
     }
     mark(nullptr);
   }
 
+  // The reference path (the paper's formulation): sampling and edge kernels, then the two
+  // products with cuBLAS around a finishing kernel, then the scatter.
   template <class Mark>
-  void run_inline(Mark& mark) {
-    if (max_terms <= 2)
-      run_inline_c<2>(mark);
-    else if (max_terms == 3)
-      run_inline_c<3>(mark);
-    else
-      run_inline_c<4>(mark);
-  }
-
-  // Enqueues the device stages; records events[i] before stage i and returns the stage names
-  // (events.size() == names.size() + 1 used).
-  void run_stages(std::vector<const char*>* names, bool record) {
-    int e = 0;
-    auto mark = [&](const char* name) {
-      if (!record) return;
-      if (name && names) names->push_back(name);
-      CK(cudaEventRecord(events.ev[e++], stream));
-    };
+  void run_reference(Mark& mark) {
     const int T = 256;
-    const bool inline_path = path == kFused && fused_fit < 0 && inline_ok;
-    if (!(inline_path && inline_params())) {  // else the control values ride in the launch
-      mark("upload");
-      CK(cudaMemcpyAsync(D, h_D.ptr, nD * sizeof(float), cudaMemcpyHostToDevice, stream));
-    }
-    if (inline_path) {
-      run_inline(mark);
-      return;
-    }
     mark("sampling");
     if (pv.samples > 0) {
-      const bool fixed = sample_blocks <= 0;
-      if (fixed && max_terms <= 2)
-        k_sample_fixed<2><<<blocks_for(pv.samples, T), T, 0, stream>>>(pv, fv, D);
-      else if (max_terms == 3 && (sample_blocks == 4 || sample_blocks == 0))
-        k_sample_fixed_capped<3, 4><<<blocks_for(pv.samples, T), T, 0, stream>>>(pv, fv, D);
-      else if (fixed && max_terms == 3)
-        k_sample_fixed<3><<<blocks_for(pv.samples, T), T, 0, stream>>>(pv, fv, D);
-      else if (fixed && max_terms == 4)
-        k_sample_fixed<4><<<blocks_for(pv.samples, T), T, 0, stream>>>(pv, fv, D);
-      else if (sample_blocks == 2)
-        k_sample_capped<2><<<blocks_for(pv.samples, T), T, 0, stream>>>(pv, fv, D);
-      else if (sample_blocks == 3 || fixed)
-        k_sample_capped<3><<<blocks_for(pv.samples, T), T, 0, stream>>>(pv, fv, D);
-      else
-        k_sample<<<blocks_for(pv.samples, T), T, 0, stream>>>(pv, fv, D);
+      with_terms(kernel_terms(max_terms), [&](auto c) {
+        constexpr int C = decltype(c)::value;
+        k_sample<C, sample_min_blocks(C)><<<blocks_for(pv.samples, T), T, 0, stream>>>(pv, fv, D);
+      });
       CK_LAUNCH(k_sample);
     }
     mark("edge_adjustment");
@@ -1557,55 +1239,45 @@ struct CudaEvaluator::Impl {
       mark(nullptr);
       return;
     }
-    if (path == kFused) {
-      mark("fit_tessellate");
-      const long long sh = render_shift;
-      const int lanes = fused_lanes > 0 ? fused_lanes : fused_fit <= 0 ? 8 : 4;
-      if (fused_fit <= 0 && lanes == 16)
-        k_fit_tessellate_staged<16, 16, 1><<<blocks_for(pv.patches, 16), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
-      else if (fused_fit <= 0 && lanes == 8 && fused_blocks == 4)
-        k_fit_tessellate_staged<32, 8, 4><<<blocks_for(pv.patches, 32), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
-      else if (fused_fit <= 0 && lanes != 4)
-        k_fit_tessellate_staged<32, 8, 1><<<blocks_for(pv.patches, 32), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
-      else if (fused_fit <= 0 && fused_blocks == 1)
-        k_fit_tessellate_staged<64, 4, 1><<<blocks_for(pv.patches, 64), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
-      else if (fused_fit <= 0 && fused_blocks == 5)
-        k_fit_tessellate_staged<64, 4, 5><<<blocks_for(pv.patches, 64), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
-      else if (fused_fit <= 0)
-        k_fit_tessellate_staged<64, 4, 4><<<blocks_for(pv.patches, 64), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
-      else if (lanes == 1)
-        k_fit_tessellate<128, 1, 1><<<blocks_for(pv.patches, 128), 128, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
-      else if (lanes == 8)
-        k_fit_tessellate<32, 8, 1><<<blocks_for(pv.patches, 32), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
-      else if (fused_blocks == 3)
-        k_fit_tessellate<64, 4, 3><<<blocks_for(pv.patches, 64), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
-      else if (fused_blocks == 4)
-        k_fit_tessellate<64, 4, 4><<<blocks_for(pv.patches, 64), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
-      else
-        k_fit_tessellate<64, 4, 1><<<blocks_for(pv.patches, 64), 256, 0, stream>>>(pv, fv, grid_info, owns, prender, sh, normals);
-      CK_LAUNCH(k_fit_tessellate);
-    } else {
-      const long long P = pv.patches, K = pv.columns, G = pv.grid;
-      mark("gather");
-      k_gather<<<blocks_for(P * K, T), T, 0, stream>>>(pv, fv, X);
-      CK_LAUNCH(k_gather);
-      const float one = 1.0f, zero = 0.0f;
-      mark("fit_gemm");
-      // F (10 x 6P) = M (10 x K) X (K x 6P); M stored row-major = column-major K x 10.
-      CKB(cb->sgemm(cublas, CUBLAS_OP_T, CUBLAS_OP_N, 10, (int)(6 * P), (int)K, &one, pv.fit_matrix, (int)K, X,
-                      (int)K, &zero, F, 10));
-      mark("fit_finish");
-      k_finish<<<blocks_for(P, T), T, 0, stream>>>(pv, fv, F, C);
-      CK_LAUNCH(k_finish);
-      mark("tessellate_gemm");
-      // Q (G x 6P) = B (G x 10) C (10 x 6P); grid_basis stored row-major = column-major 10 x G.
-      CKB(cb->sgemm(cublas, CUBLAS_OP_T, CUBLAS_OP_N, (int)G, (int)(6 * P), 10, &one, pv.grid_basis, 10, C, 10,
-                      &zero, Q, (int)G));
-      mark("tessellate_scatter");
-      k_scatter<<<blocks_for(P * G, T), T, 0, stream>>>(pv, fv, Q, C, grid_info, owns, prender, render_shift, normals);
-      CK_LAUNCH(k_scatter);
-    }
+    const long long P = pv.patches, K = pv.columns, G = pv.grid;
+    mark("gather");
+    k_gather<<<blocks_for(P * K, T), T, 0, stream>>>(pv, fv, X);
+    CK_LAUNCH(k_gather);
+    const float one = 1.0f, zero = 0.0f;
+    mark("fit_gemm");
+    // F (10 x 6P) = M (10 x K) X (K x 6P); M stored row-major = column-major K x 10.
+    CKB(cb->sgemm(cublas, CUBLAS_OP_T, CUBLAS_OP_N, 10, (int)(6 * P), (int)K, &one, pv.fit_matrix, (int)K, X, (int)K,
+                  &zero, F, 10));
+    mark("fit_finish");
+    k_finish<<<blocks_for(P, T), T, 0, stream>>>(pv, fv, F, C);
+    CK_LAUNCH(k_finish);
+    mark("tessellate_gemm");
+    // Q (G x 6P) = B (G x 10) C (10 x 6P); grid_basis stored row-major = column-major 10 x G.
+    CKB(cb->sgemm(cublas, CUBLAS_OP_T, CUBLAS_OP_N, (int)G, (int)(6 * P), 10, &one, pv.grid_basis, 10, C, 10, &zero,
+                  Q, (int)G));
+    mark("tessellate_scatter");
+    k_scatter<<<blocks_for(P * G, T), T, 0, stream>>>(pv, fv, Q, C, grid_info, owns, prender, render_shift, normals);
+    CK_LAUNCH(k_scatter);
     mark(nullptr);
+  }
+
+  // Enqueues the device stages; records events[i] before stage i and returns the stage names
+  // (events.size() == names.size() + 1 used).
+  void run_stages(std::vector<const char*>* names, bool record) {
+    int e = 0;
+    auto mark = [&](const char* name) {
+      if (!record) return;
+      if (name && names) names->push_back(name);
+      CK(cudaEventRecord(events.ev[e++], stream));
+    };
+    if (!(inline_path() && inline_params())) {  // else the control values ride in the launch
+      mark("upload");
+      CK(cudaMemcpyAsync(D, h_D.ptr, nD * sizeof(float), cudaMemcpyHostToDevice, stream));
+    }
+    if (inline_path())
+      run_inline(mark);
+    else
+      run_reference(mark);
   }
 
   // Copies device bytes to host memory behind the work queued on `stream`: straight into a
@@ -1716,14 +1388,6 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
   Impl& m = *impl_;
   m.shared_memory_limit = shared_memory_limit;
   m.path = parse_path(path);
-  if (const char* lanes = std::getenv("SMOOTHFFD_FUSED_LANES")) m.fused_lanes = std::atoi(lanes);
-  if (const char* b = std::getenv("SMOOTHFFD_SAMPLE_BLOCKS"))
-    m.sample_blocks = std::string(b) == "fixed" ? -1 : std::atoi(b);
-  if (const char* b = std::getenv("SMOOTHFFD_FUSED_BLOCKS")) m.fused_blocks = std::atoi(b);
-  if (const char* b = std::getenv("SMOOTHFFD_INLINE_BOXES")) m.box_env = std::atoi(b);
-  if (const char* g = std::getenv("SMOOTHFFD_INLINE_GRID")) m.grid_env = std::atoi(g);
-  if (const char* ff = std::getenv("SMOOTHFFD_FUSED_FIT"))
-    m.fused_fit = std::string(ff) == "regs" ? 1 : std::string(ff) == "staged" ? 0 : -1;
   m.max_terms = 1;
   for (const AxisPieceF& pc : plan_->pieces) m.max_terms = std::max(m.max_terms, std::max(pc.count, pc.degree + 1));
   const Plan& p = *plan_;
@@ -1753,12 +1417,6 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
   v.edge_flags = a.upload(p.edge_flags);
   v.grid_basis = a.upload(p.grid_basis);
   const TessellationTables tt = build_tessellation(p.level);
-  {
-    std::vector<float> bary(4 * (size_t)p.grid, 0.0f);
-    for (int g = 0; g < p.grid; ++g)
-      for (int k = 0; k < 3; ++k) bary[4 * (size_t)g + k] = (float)tt.bary[3 * (size_t)g + k];
-    v.grid_bary = a.upload(bary);
-  }
   v.local_triangles = a.upload(p.local_triangles);
   v.output_owner = a.upload(p.output_owner);
   // Render-vertex tables stay on the host (the per-corner copy back gathers there); the
@@ -1813,34 +1471,38 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
   f.corner_normals = nullptr;
   (void)G;
   m.normals = a.alloc<float>(3 * (long long)p.render_vertices + 3) + lead(interior0 + m.render_shift);
-  if (m.path == kCublas) m.ensure_cublas();
+  if (m.path == kCublas) {
+    m.ensure_cublas();
+  } else if (m.inline_mode < 0) {  // the fused path runs the reference kernels for this plan
+    try {
+      m.ensure_cublas();
+    } catch (const CudaError& e) {
+      throw CudaError("the inline kernel cannot run this plan (" + m.inline_why +
+                      "), and the cuBLAS path that would serve it is unavailable: " + e.what());
+    }
+  }
   CK(cudaDeviceSynchronize());
 }
 
 CudaEvaluator::~CudaEvaluator() = default;
 
-std::string CudaEvaluator::fused_kernel() const {
+const char* CudaEvaluator::kernel() const {
   const Impl& m = *impl_;
-  if (m.fused_fit >= 0 || !m.inline_ok) return "staged";
-  return m.inline_args.boxes > 0 ? "inline (boxes)" : "inline (weights)";
+  if (!m.inline_path()) return "cublas";
+  return m.inline_mode == kInlineBoxes ? "inline (boxes)" : m.inline_mode == kInlineWeights ? "inline (weights)"
+                                                                                          : "inline (global)";
 }
 
 sffd_cuda_limits CudaEvaluator::limits() const {
   sffd_cuda_limits l = impl_->lim;
   const Impl& m = *impl_;
-  const bool inline_path = m.path == kFused && m.fused_fit < 0 && m.inline_ok;
-  const int C = m.max_terms <= 2 ? 2 : m.max_terms == 3 ? 3 : 4;
-  l.inline_dynamic = inline_path ? (int64_t)m.inline_args.shared_bytes(plan_->columns, C) : 0;
+  l.inline_dynamic = m.inline_path() && m.inline_mode != kInlineGlobal
+                         ? (int64_t)m.inline_args.shared_bytes(plan_->columns, m.inline_terms)
+                         : 0;
   return l;
 }
 
 std::string CudaEvaluator::path() const { return impl_->path == kFused ? "fused" : "cublas"; }
-
-void CudaEvaluator::set_path(const std::string& path) {
-  Path p = parse_path(path);
-  if (p == kCublas) impl_->ensure_cublas();
-  impl_->path = p;
-}
 
 size_t CudaEvaluator::output_bytes() const {
   const Plan& p = *plan_;

@@ -2,20 +2,18 @@
 // (for the inline kernel and up to 256 control points: inside the launch's parameters).
 // The per-element stages are the SFFD_HD functions of eval/stages.hpp, called from kernels.
 //
-// Two paths for the fitting and tessellation products (selected by `path`, or the environment
-// variable SMOOTHFFD_CUDA_PATH = "fused" | "cublas"):
-//   cublas: the paper's formulation. Gather the deformed samples and normals of every patch
-//           into a matrix X (K x 6P), one SGEMM M_r (10 x K) X (Eq. 13), a finishing kernel
-//           (exact corners, adjusted edges, centre), one SGEMM B_q (G x 10) C (10 x 6P)
-//           (Eq. 14), then a kernel that scatters the welded positions and normalizes normals.
-//   fused:  no intermediate matrices. Default ("inline", cuda/inline_kernels.cuh): one
-//           persistent kernel a frame in which each patch evaluates its own samples (from
-//           the lattice boxes in power form where they fit in shared memory, else from
-//           per-sample weights; fused_kernel() says which), fits, adjusts its edges and
-//           tessellates from shared memory. "staged" (SMOOTHFFD_FUSED_FIT=staged,
-//           and lattices with more than 4 terms an axis): a sampling kernel and an edge
-//           kernel write per-sample and per-edge buffers, then one kernel fits a block of
-//           patches into shared memory and tessellates them straight from there.
+// Two paths, chosen by the constructor's `path`:
+//   fused:  the default. One persistent kernel a frame, k_inline (cuda/inline_kernels.cuh), in
+//           which each patch evaluates its own samples, fits, adjusts its edges and
+//           tessellates, with no intermediate buffers. Its tables live in shared memory where
+//           they fit (the samples from the lattice boxes in power form, else from per-sample
+//           weights), else in device memory (any plan); kernel() says which.
+//   cublas: the paper's formulation, the reference. A sampling kernel and an edge kernel
+//           write per-sample and per-edge buffers; gather the deformed samples and normals of
+//           every patch into a matrix X (K x 6P), one SGEMM M_r (10 x K) X (Eq. 13), a
+//           finishing kernel (exact corners, adjusted edges, centre), one SGEMM B_q (G x 10)
+//           C (10 x 6P) (Eq. 14), then a kernel that scatters the welded positions and
+//           normalizes normals. cuBLAS is loaded when this path is asked for.
 //
 // Device-resident output of a frame (compact): positions, N x 3 (welded output vertices), and
 // normals per render vertex, R x 3 (Plan::render_*: an output vertex duplicated only where
@@ -60,10 +58,10 @@ const char* build_info();
 
 class CudaEvaluator : public Evaluator {
  public:
-  // path: "fused", "cublas", or "" (SMOOTHFFD_CUDA_PATH, else the default, fused).
-  // shared_memory_limit: 0, the device's own shared-memory limits; else the opt-in shared
-  // memory a block may use on a smaller device to emulate (at least 48 KiB; tests): the inline
-  // kernel's tables (boxes, weights or the staged kernels) and blocks an SM are chosen for it.
+  // path: "fused" (or "", the default) or "cublas". shared_memory_limit: 0, the device's own
+  // shared-memory limits; else the opt-in shared memory a block may use on a smaller device to
+  // emulate (at least 48 KiB; tests): the inline kernel's tables (boxes, weights or global) and
+  // blocks an SM are chosen for it.
   explicit CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string& path = "",
                          int64_t shared_memory_limit = 0);
   ~CudaEvaluator() override;
@@ -79,13 +77,13 @@ class CudaEvaluator : public Evaluator {
   StageTimes evaluate_device(const float* D);
 
   std::string path() const;
-  void set_path(const std::string& path);
   // Bytes of the compact device output of one frame: 12 (N + R).
   size_t output_bytes() const;
   size_t device_bytes() const;  // device memory held
-  // Which kernels the fused path runs for this plan: "inline (boxes)" (the default where the
-  // lattice boxes fit in shared memory), "inline (weights)", or "staged".
-  std::string fused_kernel() const;
+  // What runs a frame: "inline (boxes)" (where the lattice boxes fit in shared memory),
+  // "inline (weights)", "inline (global)" (the tables in device memory), or "cublas" (the
+  // reference path). A static string.
+  const char* kernel() const;
   // The shared-memory limits the launches were planned with (cuda_api.h).
   sffd_cuda_limits limits() const;
   // Fills the device outputs and intermediates with NaN (tests: every element must be written).

@@ -159,14 +159,10 @@ StageTimes CudaEvaluator::benchmark(const float* D, int iters) {
 
 std::string CudaEvaluator::path() const { return api_->path(handle_); }
 
-void CudaEvaluator::set_path(const std::string& path) {
-  sffd_cuda_error err{};
-  check(api_->set_path(handle_, path.c_str(), &err), err);
-}
 
 size_t CudaEvaluator::output_bytes() const { return (size_t)api_->output_bytes(handle_); }
 size_t CudaEvaluator::device_bytes() const { return (size_t)api_->device_bytes(handle_); }
-std::string CudaEvaluator::fused_kernel() const { return api_->fused_kernel(handle_); }
+std::string CudaEvaluator::kernel() const { return api_->kernel(handle_); }
 
 sffd_cuda_limits CudaEvaluator::limits() const {
   sffd_cuda_limits l{};

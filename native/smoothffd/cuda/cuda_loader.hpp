@@ -37,7 +37,7 @@ void cuda_host_free(void* ptr);
 
 class CudaEvaluator : public Evaluator {
  public:
-  // path: "fused", "cublas", or "" (SMOOTHFFD_CUDA_PATH, else fused). shared_memory_limit: 0
+  // path: "fused" (or "") or "cublas". shared_memory_limit: 0
   // (the device's own) or the shared memory a block may opt in to on a smaller device to
   // emulate (at least 48 KiB; tests of the launch choices).
   explicit CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string& path = "",
@@ -51,10 +51,9 @@ class CudaEvaluator : public Evaluator {
   StageTimes evaluate(const float* D, float* positions, float* corner_normals) override;
   StageTimes evaluate_device(const float* D);
   std::string path() const;
-  void set_path(const std::string& path);
   size_t output_bytes() const;
   size_t device_bytes() const;
-  std::string fused_kernel() const;
+  std::string kernel() const;
   sffd_cuda_limits limits() const;
   void poison();
   StageTimes evaluate_compact(const float* D, float* positions, float* normals) override;

@@ -1,11 +1,12 @@
-// The inline fused path (the CUDA evaluator's default for plans with at most 4 terms an axis):
-// one kernel a frame samples, fits, adjusts the edges and tessellates, with nothing going
-// through device memory between the stages. Included by cuda_evaluator.cu inside its anonymous
-// namespace (it uses GridInfo, PatchCtrl, eval_point and tessellate_interior from there).
+// The fused path (the CUDA evaluator's default, every plan): one kernel a frame samples, fits,
+// adjusts the edges and tessellates, with nothing going through device memory between the
+// stages. Included by cuda_evaluator.cu inside its anonymous namespace (it uses GridInfo,
+// PatchCtrl, eval_point and tessellate_interior from there).
 //
-// Why: the staged path (k_sample -> k_edge -> k_fit_tessellate_staged) writes every sample's
-// value and Jacobian (48 bytes) and gathers them back by index for each patch; the fit then
-// waits on those dependent gathers, and the edge kernel is a launch of its own. Here each
+// Why: a staged pipeline (sampling kernel -> edge kernel -> fit, as the reference path runs)
+// writes every sample's value and Jacobian (48 bytes) and gathers them back by index for each
+// patch; the fit then waits on those dependent gathers, and the edge kernel is a launch of its
+// own (2.8x slower than this kernel on W1 at L = 10, the last time both ran). Here each
 // patch evaluates its 37 columns itself (28 evaluations once the constraint columns that are
 // grid points are shared; a sample on an edge is evaluated by both patches, about 1.6
 // evaluations a sample), from tables in shared memory, and adjusts its own three edges from
@@ -17,8 +18,10 @@
 //
 // A sample is evaluated either from the lattice boxes in power form (convert_boxes, once a
 // block; eval_box: three nested Horner schemes) or, where those do not fit in shared memory,
-// from the axis pieces' weights and the tensor contraction (sample_inline). The profile that
-// led here, and the measurements, are in docs/benchmarks.md.
+// from the axis pieces' weights and the tensor contraction (sample_inline); where even those
+// tables do not fit, they stay in device memory and each sample comes from the plan
+// (InlineMode). The profile that led here, and the measurements, are in git
+// (docs/benchmarks.md says where).
 #pragma once
 
 // Largest lattice whose control values ride in the launch's parameters (3 KB) instead of a
@@ -39,10 +42,46 @@ struct InlinePiece {
   int4 off;
 };
 
-// Columns k_inline evaluates a patch (the grid's and the extra constraint columns): at most
-// 55 + 9 for C <= 4.
-constexpr int kMaxInlineGrid = 64;  // fitting-grid columns; C <= 4 gives degree <= 9: 55
-constexpr int kMaxInlineColumns = 64;
+// The same for the global mode (tables in device memory), up to kMaxTerms terms.
+struct __align__(16) InlinePieceWide {
+  float4 map;
+  float coef[kMaxTerms][kMaxTerms];
+  int off[kMaxTerms];
+};
+
+// A piece's coefficients of term k and its terms' offsets, C terms (C <= 4 for InlinePiece).
+template <int C>
+__device__ __forceinline__ void piece_coefficients(const InlinePiece& pc, int k, float c[C]) {
+  const float4 c4 = pc.coef[k];
+  const float v[4] = {c4.x, c4.y, c4.z, c4.w};
+#pragma unroll
+  for (int q = 0; q < C; ++q) c[q] = v[q];
+}
+template <int C>
+__device__ __forceinline__ void piece_coefficients(const InlinePieceWide& pc, int k, float c[C]) {
+#pragma unroll
+  for (int q = 0; q < C; ++q) c[q] = pc.coef[k][q];
+}
+template <int C>
+__device__ __forceinline__ void piece_offsets(const InlinePiece& pc, int o[C]) {
+  const int4 q = pc.off;
+  const int v[4] = {q.x, q.y, q.z, q.w};
+#pragma unroll
+  for (int k = 0; k < C; ++k) o[k] = v[k];
+}
+template <int C>
+__device__ __forceinline__ void piece_offsets(const InlinePieceWide& pc, int o[C]) {
+#pragma unroll
+  for (int k = 0; k < C; ++k) o[k] = pc.off[k];
+}
+
+// Columns k_inline evaluates a patch (the grid's and the extra constraint columns). The
+// fitting degree is at most 3 kMaxAxisDegree = 15: at most 136 grid columns, 145 in all.
+// With the lattice tables in shared memory (C <= 4 terms an axis: degree <= 9) at most 55 + 9:
+// InlinePatch::box has a byte for each.
+constexpr int kMaxInlineGrid = (3 * kMaxAxisDegree + 1) * (3 * kMaxAxisDegree + 2) / 2;
+constexpr int kMaxInlineColumns = kMaxInlineGrid + 9;
+constexpr int kMaxBoxColumns = 64;
 
 // The constraint columns (corners, edge points at 1/3 and 2/3) are usually fitting-grid points
 // too (always the corners; the edge points when the fitting degree is a multiple of 3), with
@@ -54,11 +93,11 @@ constexpr int kMaxInlineColumns = 64;
 // loop ran all three branches).
 struct ColumnMap {
   int8_t con_of[kMaxInlineGrid];
-  int8_t order[kMaxInlineColumns];
-  int8_t n_cols;
-  int8_t pad[3];
+  uint8_t order[kMaxInlineColumns];
+  uint8_t n_cols;
+  uint8_t pad[(4 - (kMaxInlineGrid + kMaxInlineColumns + 1) % 4) % 4];
 };
-static_assert(sizeof(ColumnMap) == 132, "ColumnMap is staged as 33 words");
+static_assert(sizeof(ColumnMap) % 4 == 0, "ColumnMap is staged as words");
 
 // A fitting column as k_inline reads it (shared memory, 32 bytes): its barycentric point and
 // centre-row coefficient (0 for constraint columns), and where its sample lies: at corner
@@ -139,7 +178,7 @@ struct __align__(16) InlinePatch {
   uint32_t flags;
   PatchBoundary bound;
   float4 corner[3];
-  uint8_t box[kMaxInlineColumns];
+  uint8_t box[kMaxBoxColumns];
 };
 static_assert(sizeof(InlinePatch) == 336 && sizeof(InlinePatch) % 16 == 0, "copied as 16-byte pieces");
 constexpr int kPatchChunks = sizeof(InlinePatch) / 16;
@@ -150,10 +189,11 @@ constexpr int kPatchChunks = sizeof(InlinePatch) / 16;
 // (the fitted edge control points' sum, which finish_patch_from compares with the adjusted
 // ones). It is a launch parameter so the products read it from the constant bank.
 struct InlineArgs {
-  const InlinePiece* pieces;
+  const InlinePiece* pieces;           // the shared-memory modes'
+  const InlinePieceWide* pieces_wide;  // kInlineGlobal's
   const InlineColumn* column;  // K
   const ColumnMap* column_map;
-  const float* D;               // control values on the device, or null: from InlineControls
+  const float* D;  // control values on the device, or null: from InlineControls (not kInlineGlobal)
   int points, n_pieces, groups;
   // The lattice boxes (one piece an axis) that hold samples, box_count of them: box_list, each
   // box's three pieces (indices into `pieces`) and, w, the three packed 10 bits each. In power
@@ -194,7 +234,7 @@ struct InlineArgs {
 // with the ~34 KB of static shared memory, 4 blocks fit an SM up to about 22 KB of it, 3
 // beyond: W1 asks for 17 KB at L = 10, more than 22 KB beyond L = 23). Larger lattices (beyond
 // about 1500 control points of degree 2) or levels (beyond 36 with W1's 27 boxes) run the
-// staged path. On devices that give a block less shared memory (sm_75: 64 KB with the
+// global mode. On devices that give a block less shared memory (sm_75: 64 KB with the
 // static part), CudaEvaluator lowers it to what the device's limits leave (plan_limits).
 constexpr size_t kInlineSharedBytes = 28 * 1024;
 constexpr int kBoxPoints = 512;  // control values that fit k_inline's ctrl table (32 patches)
@@ -237,26 +277,45 @@ __device__ __forceinline__ void compose_inline(float4 pw, const float m[3][3], c
   }
 }
 
-// F and J at one sample from the shared tables: sample_point (stages.hpp) with the axis
+// Where sample_inline reads the control values: a point offset o (InlinePiece::off) gives
+// its three coordinates. SharedControls: the block's float4 copy in shared memory (the
+// weights mode); GlobalControls: the frame's upload, 3 floats a point (the global mode).
+struct SharedControls {
+  const float4* v;
+  __device__ __forceinline__ V3 operator()(int o) const {
+    const float4 q = v[o];
+    return v3(q.x, q.y, q.z);
+  }
+};
+struct GlobalControls {
+  const float* __restrict__ v;
+  __device__ __forceinline__ V3 operator()(int o) const {
+    const float* q = v + 3 * (long long)o;
+    return v3(__ldg(q), __ldg(q + 1), __ldg(q + 2));
+  }
+};
+
+// F and J at one sample from the inline tables: sample_point (stages.hpp) with the axis
 // pieces in power form, t from the folded map, the tensor contraction of tensor_eval_fixed in
-// the same order, and J = I + w (dF/dt) A' with A' = the pieces' maps (dt/dp).
-template <int C>
-__device__ __forceinline__ void sample_inline(const float4* __restrict__ D4, const InlinePiece* __restrict__ pcs,
-                                              float4 pw, uint32_t box, float F[3], float J[9]) {
+// the same order, and J = I + w (dF/dt) A' with A' = the pieces' maps (dt/dp). piece: the
+// sample's piece of each axis (indices into pcs).
+template <int C, class Piece, class Controls>
+__device__ __forceinline__ void sample_inline(const Controls& D, const Piece* __restrict__ pcs, float4 pw,
+                                              const int piece[3], float F[3], float J[9]) {
   float w[3][C], dw[3][C], m[3][3];
   int off[3][C];
 #pragma unroll
   for (int a = 0; a < 3; ++a) {
-    const InlinePiece& pc = pcs[(box >> (10 * a)) & 1023u];
+    const Piece& pc = pcs[piece[a]];
     const float4 mp = pc.map;
-    const int4 o = pc.off;
+    int oo[C];
+    piece_offsets<C>(pc, oo);
     m[a][0] = mp.x, m[a][1] = mp.y, m[a][2] = mp.z;
     const float t = fmaf(mp.x, pw.x, fmaf(mp.y, pw.y, fmaf(mp.z, pw.z, mp.w)));
-    const int oo[4] = {o.x, o.y, o.z, o.w};
 #pragma unroll
     for (int k = 0; k < C; ++k) {
-      const float4 c4 = pc.coef[k];
-      const float c[4] = {c4.x, c4.y, c4.z, c4.w};
+      float c[C];
+      piece_coefficients<C>(pc, k, c);
       float v = c[C - 1], d = 0.0f;
 #pragma unroll
       for (int q = C - 2; q >= 0; --q) {
@@ -274,11 +333,11 @@ __device__ __forceinline__ void sample_inline(const float4* __restrict__ D4, con
     float av[3] = {0, 0, 0}, avd[3] = {0, 0, 0}, awd[3] = {0, 0, 0};
 #pragma unroll
     for (int b = 0; b < C; ++b) {
-      const float4* row = D4 + off[0][a] + off[1][b];
+      const int row = off[0][a] + off[1][b];
       float bw[3] = {0, 0, 0}, bwd[3] = {0, 0, 0};
 #pragma unroll
       for (int c = 0; c < C; ++c) {
-        const float4 d4 = row[off[2][c]];
+        const V3 d4 = D(row + off[2][c]);
         const float d[3] = {d4.x, d4.y, d4.z};
 #pragma unroll
         for (int r = 0; r < 3; ++r) {
@@ -432,25 +491,60 @@ __device__ __forceinline__ void sample_box(const float4* __restrict__ boxes, con
   compose_inline(pw, m, val, gu, gv, gw, F, J);
 }
 
-// tessellate_block's work for k_inline's group of patches (ctrl, already with their fallback
-// normals and in power form), in the walk order of the grid (gi: the boundary points'
-// GridInfo, st: every point's (s, t); shared memory): first the boundary points the group
-// writes, from its list (list: InlineArgs::boundary_list's entries, sbound: the patches'
-// PatchBoundary tables), one thread a point, so that no thread idles beside the others on a
-// point another patch owns; then the interior points, which every patch writes, two a thread
-// where no pair straddles two patches, stored straight from registers.
-template <int kThreads>
-__device__ __forceinline__ void tessellate_listed(const PlanView& pv, const FrameView& fv, const GridInfo* __restrict__ gi,
-                                                  const WalkST& st, const PatchCtrl* ctrl,
-                                                  const PatchBoundary* sbound, const uint16_t* list, int base,
-                                                  long long render_shift, float* __restrict__ normals) {
+// The inline kernel's three ways of reading the lattice and the plan's tables, chosen per
+// plan by CudaEvaluator (the device's shared memory and the plan's sizes decide):
+//   kInlineBoxes:   tables in shared memory, samples from the lattice boxes in power form;
+//   kInlineWeights: tables and control values in shared memory, samples from the per-axis
+//                   weights (the boxes do not fit);
+//   kInlineGlobal:  the tables stay in device memory (read through the caches), each sample's
+//                   position and pieces come from the plan, the control values from the
+//                   frame's upload: any plan (up to kMaxTerms terms an axis, any level, any
+//                   lattice), where the tables do not fit in shared memory or the patch records
+//                   cannot hold the plan's columns.
+enum InlineMode { kInlineBoxes = 0, kInlineWeights = 1, kInlineGlobal = 2 };
+
+// The group's boundary points (corners and edge points) for tessellate_group: from the
+// group's list (shared-memory modes) or all of them, one after the other (kInlineGlobal;
+// the points no patch of the group writes are skipped).
+struct ListedBoundary {
+  const uint16_t* list;
+  int items;
+  __device__ __forceinline__ int count() const { return items; }
+  __device__ __forceinline__ void item(int i, int& q, int& w) const {
+    const uint32_t e = list[i];
+    q = e & 31u, w = e >> 5;
+  }
+  static constexpr bool kAll = false;
+};
+struct AllBoundary {
+  int patches, points;  // points: the walk's boundary points
+  float inv_points;
+  __device__ __forceinline__ int count() const { return patches * points; }
+  __device__ __forceinline__ void item(int i, int& q, int& w) const {
+    q = div_small(i, points, inv_points), w = i - q * points;
+  }
+  static constexpr bool kAll = true;
+};
+
+// The tessellation of k_inline's group of patches (ctrl, already with their fallback normals
+// and in power form), in the walk order of the grid (gi: the boundary points' GridInfo, st:
+// every point's (s, t)): first the boundary points the group writes (BL: ListedBoundary or
+// AllBoundary; sbound: the patches' PatchBoundary tables), one thread a point, so that no
+// thread idles beside the others on a point another patch owns; then the interior points,
+// which every patch writes, two a thread where no pair straddles two patches, stored straight
+// from registers.
+template <int kThreads, class BL>
+__device__ __forceinline__ void tessellate_group(const PlanView& pv, const FrameView& fv, const GridInfo* __restrict__ gi,
+                                                 const WalkST& st, const PatchCtrl* ctrl, const PatchBoundary* sbound,
+                                                 const BL& boundary, int base, long long render_shift,
+                                                 float* __restrict__ normals) {
   const int L = pv.level;
   const int np = min(kThreads / 4, pv.patches - base);
   const int IG = (L - 1) * (L - 2) / 2;
-  const int items = sbound[0].items;
+  const int items = boundary.count();
   for (int i = threadIdx.x; i < items; i += kThreads) {
-    const uint32_t e = list[i];
-    const int q = e & 31u, w = e >> 5;
+    int q, w;
+    boundary.item(i, q, w);
     const GridInfo t = gi[w];
     int o = -1, r;
     if (t.kind == 0) {
@@ -460,6 +554,7 @@ __device__ __forceinline__ void tessellate_listed(const PlanView& pv, const Fram
       o = b.x + t.step * b.y;
       r = b.z + t.step * b.w;
     }
+    if (BL::kAll && r < 0 && o < 0) continue;
     V3 x, n;
     const float2 p = st.st[w];
     eval_point(p.x, p.y, ctrl[q][0], ctrl[q][1], load3(ctrl[q].fallback), x, n);
@@ -470,13 +565,14 @@ __device__ __forceinline__ void tessellate_listed(const PlanView& pv, const Fram
   const long long o0 = pv.sub_vertices + (long long)pv.edges * (L - 1) + (long long)base * IG;
   // The warps whose threads took one boundary point more take their interior runs last.
   if (IG % 2 == 0)
-    tessellate_interior<2, kThreads, true, true>(fv, st, ctrl, np * IG, IG, o0, render_shift, normals, nullptr);
+    tessellate_interior<2, kThreads>(fv, st, ctrl, np * IG, IG, o0, render_shift, normals);
   else
-    tessellate_interior<1, kThreads, true, true>(fv, st, ctrl, np * IG, IG, o0, render_shift, normals, nullptr);
+    tessellate_interior<1, kThreads>(fv, st, ctrl, np * IG, IG, o0, render_shift, normals);
 }
 
-// One kernel a frame, persistent: each block stages the lattice tables once, then takes
-// groups of PB patches (group, group + gridDim.x, ...). LANES threads a patch:
+// One kernel a frame, persistent: each block stages the lattice tables once (MODE: where they
+// live, InlineMode), then takes groups of PB patches (group, group + gridDim.x, ...). LANES
+// threads a patch:
 // 1 + 3. each lane evaluates its share of the columns (sample, Jacobian, deformed
 //    interpolated normal) and accumulates the centre row over the free columns; the 9
 //    constraint columns go to shared memory with the corners' Jacobians;
@@ -485,11 +581,14 @@ __device__ __forceinline__ void tessellate_listed(const PlanView& pv, const Fram
 //    per-patch tables out of the patch records;
 // 4. lane 0: finish_patch_from; then the block tessellates its patches, and meanwhile the
 //    next group's patch records (InlinePatch) arrive in shared memory (cp.async).
-template <int C, bool BOXES, int PB, int LANES, int MINB>
+template <int C, int MODE, int PB, int LANES, int MINB>
 __global__ void __launch_bounds__(PB* LANES, MINB)
     k_inline(PlanView pv, FrameView fv, InlineArgs ia, InlineControls dparam, long long render_shift,
              float* __restrict__ normals) {
   static_assert(LANES == 4, "lanes 0-2 take a component / an edge each, lane 3 the tables");
+  static_assert(MODE == kInlineGlobal || C <= 4, "the shared-memory tables hold 4 terms an axis");
+  constexpr bool BOXES = MODE == kInlineBoxes, SHARED = MODE != kInlineGlobal;
+  using Piece = typename std::conditional<SHARED, InlinePiece, InlinePieceWide>::type;
   extern __shared__ float4 lattice_shared[];
   __shared__ PatchCtrl ctrl[PB];
   __shared__ float stage[PB][9][6];       // constraint column j: x (0-2), n (3-5)
@@ -499,15 +598,57 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
   __shared__ PatchBoundary sbound[PB];    // their boundary tables (srec is refilled meanwhile)
   const int K = pv.columns, K0 = K - 9;
   static_assert(sizeof(ctrl) >= 16 * kBoxPoints, "the control values fit in ctrl");
-  float4* sD = BOXES ? reinterpret_cast<float4*>(&ctrl[0]) : lattice_shared;
-  InlinePiece* sP = reinterpret_cast<InlinePiece*>(lattice_shared + (BOXES ? 0 : ia.points));
-  InlineColumn* sCol = reinterpret_cast<InlineColumn*>(sP + ia.n_pieces);
-  float2* sST = reinterpret_cast<float2*>(sCol + K);  // ia.grid_st: (s, t) in walk order
-  GridInfo* sGi = reinterpret_cast<GridInfo*>(reinterpret_cast<float4*>(sCol + K) + (ia.st_count + 1) / 2);
-  float4* sBox = reinterpret_cast<float4*>(sGi + ia.walk_boundary);  // BOXES: boxes x C^3
-  int4* sBoxList = reinterpret_cast<int4*>(sBox + (BOXES ? ia.boxes * C * C * C : 0));  // ia.box_list
-  uint16_t* sList = reinterpret_cast<uint16_t*>(sBoxList + ia.box_count);  // a group's boundary list
-  ColumnMap* sMap = reinterpret_cast<ColumnMap*>(sList + ia.list_stride);
+  // The tables: in shared memory (laid out as InlineArgs::shared_units counts them), or
+  // where they are in device memory (kInlineGlobal).
+  float4* sD = nullptr;
+  const Piece* sP;
+  const InlineColumn* sCol;
+  const float2* sST;  // ia.grid_st: (s, t) in walk order
+  const GridInfo* sGi;
+  float4* sBox = nullptr;
+  const int4* sBoxList = nullptr;
+  uint16_t* sList = nullptr;  // a group's boundary list
+  const ColumnMap* sMap;
+  if constexpr (SHARED) {
+    sD = BOXES ? reinterpret_cast<float4*>(&ctrl[0]) : lattice_shared;
+    InlinePiece* P = reinterpret_cast<InlinePiece*>(lattice_shared + (BOXES ? 0 : ia.points));
+    InlineColumn* Col = reinterpret_cast<InlineColumn*>(P + ia.n_pieces);
+    float2* ST = reinterpret_cast<float2*>(Col + K);
+    GridInfo* Gi = reinterpret_cast<GridInfo*>(reinterpret_cast<float4*>(Col + K) + (ia.st_count + 1) / 2);
+    float4* Box = reinterpret_cast<float4*>(Gi + ia.walk_boundary);  // BOXES: boxes x C^3
+    int4* BoxList = reinterpret_cast<int4*>(Box + (BOXES ? ia.boxes * C * C * C : 0));
+    sList = reinterpret_cast<uint16_t*>(BoxList + ia.box_count);
+    ColumnMap* Map = reinterpret_cast<ColumnMap*>(sList + ia.list_stride);
+    // The control values: from the launch's parameters indexed directly (constant-bank loads;
+    // a pointer into the parameters made these generic loads, which waited on a slow path: 2%
+    // of the stall samples), or from device memory.
+    if (ia.D) {
+      for (int i = threadIdx.x; i < ia.points; i += blockDim.x)
+        sD[i] = make_float4(ia.D[3 * i], ia.D[3 * i + 1], ia.D[3 * i + 2], 0.0f);
+    } else {
+      for (int i = threadIdx.x; i < ia.points; i += blockDim.x)
+        sD[i] = make_float4(dparam.v[3 * i], dparam.v[3 * i + 1], dparam.v[3 * i + 2], 0.0f);
+    }
+    // The plan's tables, as asynchronous copies: all of them in flight at once (as plain loads
+    // and stores, each table's loop waited for its loads before the next one's were issued:
+    // 2.7% of W1's frame).
+    auto copy16 = [&](void* dst, const void* src, int n16) {
+      for (int i = threadIdx.x; i < n16; i += blockDim.x)
+        __pipeline_memcpy_async(static_cast<int4*>(dst) + i, static_cast<const int4*>(src) + i, 16);
+    };
+    copy16(P, ia.pieces, 6 * ia.n_pieces);
+    copy16(Col, ia.column, 2 * K);
+    copy16(ST, ia.grid_st, (ia.st_count + 1) / 2);
+    copy16(Gi, ia.grid_walk, ia.walk_boundary);
+    copy16(BoxList, ia.box_list, ia.box_count);
+    for (int i = threadIdx.x; i < (int)(sizeof(ColumnMap) / 4); i += blockDim.x)
+      __pipeline_memcpy_async(reinterpret_cast<int*>(Map) + i, reinterpret_cast<const int*>(ia.column_map) + i, 4);
+    __pipeline_commit();
+    sP = reinterpret_cast<const Piece*>(P), sCol = Col, sST = ST, sGi = Gi, sBox = Box, sBoxList = BoxList, sMap = Map;
+  } else {
+    sP = reinterpret_cast<const Piece*>(ia.pieces_wide), sCol = ia.column, sST = ia.grid_st, sGi = ia.grid_walk;
+    sMap = ia.column_map;
+  }
   // The group's patch records, copied asynchronously (no registers held, no wait until
   // __pipeline_wait_prior before the barrier that precedes their use).
   auto fetch_patch_records = [&](int grp) {
@@ -520,44 +661,17 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     __pipeline_commit();
   };
   const int lp = threadIdx.x / LANES, lane = threadIdx.x % LANES;
-  // The control values: from the launch's parameters indexed directly (constant-bank loads;
-  // a pointer into the parameters made these generic loads, which waited on a slow path: 2%
-  // of the stall samples), or from device memory.
-  if (ia.D) {
-    for (int i = threadIdx.x; i < ia.points; i += blockDim.x)
-      sD[i] = make_float4(ia.D[3 * i], ia.D[3 * i + 1], ia.D[3 * i + 2], 0.0f);
-  } else {
-    for (int i = threadIdx.x; i < ia.points; i += blockDim.x)
-      sD[i] = make_float4(dparam.v[3 * i], dparam.v[3 * i + 1], dparam.v[3 * i + 2], 0.0f);
-  }
-  // The plan's tables, as asynchronous copies: all of them in flight at once (as plain loads
-  // and stores, each table's loop waited for its loads before the next one's were issued:
-  // 2.7% of W1's frame, docs/benchmarks.md).
-  {
-    auto copy16 = [&](void* dst, const void* src, int n16) {
-      for (int i = threadIdx.x; i < n16; i += blockDim.x)
-        __pipeline_memcpy_async(static_cast<int4*>(dst) + i, static_cast<const int4*>(src) + i, 16);
-    };
-    copy16(sP, ia.pieces, 6 * ia.n_pieces);
-    copy16(sCol, ia.column, 2 * K);
-    copy16(sST, ia.grid_st, (ia.st_count + 1) / 2);
-    copy16(sGi, ia.grid_walk, ia.walk_boundary);
-    copy16(sBoxList, ia.box_list, ia.box_count);
-    for (int i = threadIdx.x; i < (int)(sizeof(ColumnMap) / 4); i += blockDim.x)
-      __pipeline_memcpy_async(reinterpret_cast<int*>(sMap) + i, reinterpret_cast<const int*>(ia.column_map) + i, 4);
-    __pipeline_commit();
-    fetch_patch_records(blockIdx.x);  // the first group's, committed last: not waited for yet
-    __pipeline_wait_prior(1);         // the tables
-  }
+  fetch_patch_records(blockIdx.x);  // the first group's, committed last: not waited for yet
+  if (SHARED) __pipeline_wait_prior(1);  // the tables
   __syncthreads();
   const int n_cols = sMap->n_cols;
   auto column = [&](int i) { return (int)sMap->order[i]; };
-  if (BOXES) convert_boxes<C>(ia, sBoxList, sD, sP, sBox);
+  if constexpr (BOXES) convert_boxes<C>(ia, sBoxList, sD, reinterpret_cast<const InlinePiece*>(sP), sBox);
   __pipeline_wait_prior(0);  // the first group's patch records, which arrived meanwhile
   __syncthreads();           // and ctrl (the staged control values) is free again
   // Block b takes groups b, b + gridDim.x, ...: at any time the blocks work on neighbouring
   // groups, whose samples and tables share cache lines. (Handing out groups from an atomic
-  // counter instead, to even out the SMs' busy time, measured 5% slower: docs/benchmarks.md.)
+  // counter instead, to even out the SMs' busy time, measured 5% slower.)
   for (int group = blockIdx.x; group < ia.groups; group += gridDim.x) {
     const int base = group * PB;
     const int p = base + lp;
@@ -566,7 +680,7 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     // 1 + 3. Sampling and the constrained fit's centre row over the free columns.
     V3 gc = v3(0, 0, 0), nc = v3(0, 0, 0);
     const InlinePatch& rec = srec[lp];
-    {
+    if constexpr (SHARED) {
       // The group's boundary list, on its way during the sampling (waited for before the
       // barrier that precedes the tessellation).
       const int4* src = reinterpret_cast<const int4*>(ia.boundary_list + (long long)group * ia.list_stride);
@@ -579,17 +693,32 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
       for (int i = lane; i < n_cols; i += LANES) {
         const int k = column(i);
         const InlineColumn& cl = sCol[k];
-        const float4 pw = inline_sample_point(cl, rec.flags, P0, P1, P2);
-        const int b = rec.box[i];
-        const uint2 box = make_uint2((uint32_t)sBoxList[b].w, (uint32_t)b);
         float F[3], J[9];
-        if (BOXES)
-          sample_box<C>(sBox, sP, pw, box, F, J);
-        else
-          sample_inline<C>(sD, sP, pw, box.x, F, J);
+        float4 pw;
+        if constexpr (SHARED) {
+          pw = inline_sample_point(cl, rec.flags, P0, P1, P2);
+          const int b = rec.box[i];
+          const uint32_t packed = (uint32_t)sBoxList[b].w;
+          if constexpr (BOXES) {
+            sample_box<C>(sBox, reinterpret_cast<const InlinePiece*>(sP), pw, make_uint2(packed, (uint32_t)b), F, J);
+          } else {
+            const int piece[3] = {(int)(packed & 1023u), (int)((packed >> 10) & 1023u), (int)(packed >> 20)};
+            sample_inline<C>(SharedControls{sD}, sP, pw, piece, F, J);
+          }
+        } else {
+          // The sample as the plan has it: its position, vertex weight and pieces.
+          const long long s = pv.patch_samples[(long long)p * K + k];
+          pw = make_float4(__ldg(pv.sample_position + 3 * s), __ldg(pv.sample_position + 3 * s + 1),
+                           __ldg(pv.sample_position + 3 * s + 2), __ldg(pv.sample_weight + s));
+          const uint32_t packed = __ldg(pv.sample_piece + s);
+          int piece[3];
+#pragma unroll
+          for (int a = 0; a < 3; ++a) piece[a] = pv.axis_offset[a] + (int)((packed >> (10 * a)) & 1023u);
+          sample_inline<C>(GlobalControls{ia.D}, sP, pw, piece, F, J);
+        }
         const float4 col = cl.bary;
         const V3 x = v3(F[0], F[1], F[2]);
-        // deformed_column_normal (stages.hpp) with the column's point from shared memory.
+        // deformed_column_normal (stages.hpp) with the column's point from the column table.
         const float* rn = rec.rest;
         const V3 rn0 = load3(rn);
         const V3 n0 = col.x * rn0 + col.y * load3(rn + 3) + col.z * load3(rn + 6);
@@ -682,12 +811,20 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
       // The fallback normal from the corners' sum (lanes 0-2), before the barrier below.
       store3(ctrl[lp].fallback, normalized_or(load3(ctrl[lp].fallback), v3(0, 0, 1)));
     }
-    __pipeline_wait_prior(0);  // the boundary list
+    if (SHARED) __pipeline_wait_prior(0);  // the boundary list
     __syncthreads();
     // 4. Tessellation.
     fetch_patch_records(group + gridDim.x);
-    tessellate_listed<PB * LANES>(pv, fv, sGi, WalkST{sST, ia.st_interior}, ctrl, sbound, sList, base, render_shift,
-                                  normals);
+    const WalkST st{sST, ia.st_interior};
+    if constexpr (SHARED) {
+      tessellate_group<PB * LANES>(pv, fv, sGi, st, ctrl, sbound, ListedBoundary{sList, sbound[0].items}, base,
+                                   render_shift, normals);
+    } else {
+      const int np = min(PB, pv.patches - base);
+      tessellate_group<PB * LANES>(pv, fv, sGi, st, ctrl, sbound,
+                                   AllBoundary{np, ia.walk_boundary, 1.0f / (float)ia.walk_boundary}, base,
+                                   render_shift, normals);
+    }
     __pipeline_wait_prior(0);
     __syncthreads();  // the next group's records are in; it overwrites the block's tables
   }

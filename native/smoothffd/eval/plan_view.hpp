@@ -32,7 +32,6 @@ struct PlanView {
   const uint8_t* edge_slot;
   const uint8_t* edge_flags;
   const float* grid_basis;
-  const float* grid_bary;  // G x 4: barycentric points (b0, b1, b2, 0), 16-byte rows (CUDA evaluator only; else null)
   const int* local_triangles;
   const int* output_owner;
   const int* render_owner;       // R x 2

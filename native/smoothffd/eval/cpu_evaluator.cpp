@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <climits>
+#include <cstring>
 #include <stdexcept>
 
 #include "smoothffd/core/parallel.hpp"
@@ -59,23 +60,27 @@ CpuEvaluator::CpuEvaluator(std::shared_ptr<const Plan> plan, int threads, const 
       kernels_(kernels_for(isa)),
       batches_(make_sample_batches(*plan_)),
       fit_columns_(make_fit_columns(*plan_)),
-      grid_lanes_(make_grid_basis_lanes(*plan_)) {
+      grid_lanes_(make_grid_basis_lanes(*plan_)),
+      output_owned_(owned_output_vertices(*plan_)),
+      render_owned_(owned_render_vertices(*plan_)) {
   const Plan& p = *plan_;
   sample_value_.resize(3 * (size_t)p.samples);
   sample_jacobian_.resize(9 * (size_t)p.samples);
   edge_control_.resize(6 * (size_t)p.edges);
   patch_control_.resize(30 * (size_t)p.patches);
   patch_normal_.resize(30 * (size_t)p.patches);
-  owned_start_.assign((size_t)p.patches + 1, 0);
-  for (int r = 0; r < p.render_vertices; ++r) owned_start_[(size_t)p.render_owner[2 * (size_t)r] + 1]++;
-  for (int q = 0; q < p.patches; ++q) owned_start_[q + 1] += owned_start_[q];
-  owned_.resize(2 * (size_t)p.render_vertices);
-  std::vector<int> fill(owned_start_.begin(), owned_start_.end() - 1);
-  for (int r = 0; r < p.render_vertices; ++r) {
-    const int q = p.render_owner[2 * (size_t)r], i = fill[q]++;
-    owned_[2 * (size_t)i] = p.render_owner[2 * (size_t)r + 1];
-    owned_[2 * (size_t)i + 1] = r;
-  }
+}
+
+// Stage 4a: the sub-vertices' positions are their samples (exact images of the input and clip
+// vertices); every other output vertex is tessellated by the patch that owns it.
+void CpuEvaluator::tessellate_positions(const PlanView& pv, const FrameView& fv) {
+  parallel_for(pv.sub_vertices, threads_, [&](long long b, long long e) {
+    std::memcpy(fv.positions + 3 * b, fv.sample_value + 3 * b, 12 * (size_t)(e - b));
+  });
+  parallel_for(pv.patches, threads_, [&](long long b, long long e) {
+    std::vector<float> points(3 * (size_t)grid_lanes_.padded);
+    kernels_->tessellate_positions(pv, fv, grid_lanes_, output_owned_, b, e, points.data());
+  });
 }
 
 std::string CpuEvaluator::isa() const { return kernels_->isa; }
@@ -113,15 +118,12 @@ StageTimes CpuEvaluator::run(const float* D, float* positions, float* corner_nor
     k.fit_patches(pv, fv, fit_columns_, b, e);
   });
   lap("fitting");
-  parallel_for(pv.output_vertices, threads_, [&](long long b, long long e) {
-    k.tessellate_positions(pv, fv, b, e);
-  });
+  tessellate_positions(pv, fv);
   lap("tessellate_positions");
   parallel_for(pv.patches, threads_, [&](long long b, long long e) {
     std::vector<float> normals(3 * (size_t)grid_lanes_.padded);
     if (render_normals)
-      k.tessellate_render_normals(pv, fv, grid_lanes_, owned_start_.data(), owned_.data(), b, e, normals.data(),
-                                  render_normals);
+      k.tessellate_render_normals(pv, fv, grid_lanes_, render_owned_, b, e, normals.data(), render_normals);
     else
       k.tessellate_normals(pv, fv, grid_lanes_, b, e, normals.data());
   });
@@ -161,9 +163,7 @@ StageTimes CpuEvaluator::evaluate_positions(const float* D, float* positions) {
     k.fit_patches(pv, fv, fit_columns_, b, e);  // fv.patch_normal is null: geometry only
   });
   lap("fitting");
-  parallel_for(pv.output_vertices, threads_, [&](long long b, long long e) {
-    k.tessellate_positions(pv, fv, b, e);
-  });
+  tessellate_positions(pv, fv);
   lap("tessellate_positions");
   return times;
 }

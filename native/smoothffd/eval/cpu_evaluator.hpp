@@ -42,15 +42,15 @@ class CpuEvaluator : public Evaluator {
 
  private:
   StageTimes run(const float* D, float* positions, float* corner_normals, float* render_normals);
+  void tessellate_positions(const PlanView& pv, const FrameView& fv);
   std::shared_ptr<const Plan> plan_;
   int threads_;
   const CpuFrameKernels* kernels_;  // the per-ISA per-frame loops
   SampleBatches batches_;  // sampling: samples grouped by lattice box, kLanes at a time
   FitColumns fit_columns_; // fitting: the centre row's columns, kLanes at a time
   GridBasisLanes grid_lanes_;  // normal tessellation: grid points kLanes at a time
-  // Compact normals: per patch, the (grid point, render vertex) pairs it owns
-  // (Plan::render_owner), in owned_[2 * owned_start_[p], 2 * owned_start_[p + 1]).
-  std::vector<int> owned_start_, owned_;
+  OwnedPoints output_owned_;  // position tessellation: the output vertices each patch writes
+  OwnedPoints render_owned_;  // compact normals: the render vertices each patch writes
   std::vector<float> sample_value_, sample_jacobian_, edge_control_, patch_control_, patch_normal_;
 };
 

@@ -18,6 +18,13 @@ FitColumns make_fit_columns(const Plan& plan) {
       fc.bary[(size_t)i * fc.padded + k] = k < fc.centre ? plan.column_bary[3 * k + i] : (i == 0);
     if (k < fc.centre) fc.weight[k] = plan.fit_matrix[(size_t)kCentre * K + k];
   }
+  fc.cbary.assign(3 * 16, 0.0f);
+  fc.crows.assign(16 * 16, 0.0f);
+  for (int c = 0; c < 16; ++c) {
+    for (int i = 0; i < 3; ++i) fc.cbary[(size_t)i * 16 + c] = c < 9 ? plan.column_bary[3 * (fc.centre + c) + i] : (i == 0);
+    if (c < 9)
+      for (int r = 0; r < 10; ++r) fc.crows[16 * (size_t)c + r] = plan.fit_matrix[(size_t)r * K + fc.centre + c];
+  }
   return fc;
 }
 #endif  // SFFD_ISA_PRIMARY
@@ -37,6 +44,49 @@ void cofactor_apply_lanes(const Lanes J[9], const Lanes n[3], Lanes out[3]) {
   for (int r = 0; r < 3; ++r) out[r] = n[0] * cross(c2, c3, r) + n[1] * cross(c3, c1, r) + n[2] * cross(c1, c2, r);
 }
 
+// Samples and deformed render normals of kLanes columns of one patch: the columns' sample
+// indices s[l] (-1: padding, weight 0, finite values, identity Jacobian), their barycentric
+// points b (3 x stride floats from bary + l). deformed_column_normal on lanes: the interpolated
+// rest normal, its cofactor image, two normalizations; lanes outside normalized_or's plain
+// range (a degenerate or huge cofactor) redo the shared scalar code, fallbacks included.
+template <bool kNormals>
+void columns_on_lanes(const PlanView& pv, const FrameView& fv, const int* s, const float* bary,
+                      int stride, const int* column, const V3 rn[3], Lanes x[3], Lanes n[3]) {
+  Lanes J[9];
+  for (int l = 0; l < kLanes; ++l) {
+    if (s[l] >= 0) {
+      for (int r = 0; r < 3; ++r) x[r].set(l, fv.sample_value[3 * (long long)s[l] + r]);
+      if (kNormals)
+        for (int r = 0; r < 9; ++r) J[r].set(l, fv.sample_jacobian[9 * (long long)s[l] + r]);
+    } else {
+      for (int r = 0; r < 3; ++r) x[r].set(l, 0.0f);
+      if (kNormals)
+        for (int r = 0; r < 9; ++r) J[r].set(l, r % 4 == 0 ? 1.0f : 0.0f);
+    }
+  }
+  if (!kNormals) return;
+  Lanes b[3], n0[3], c[3];
+  for (int i = 0; i < 3; ++i)
+    for (int l = 0; l < kLanes; ++l) b[i].set(l, bary[(size_t)i * stride + l]);
+  n0[0] = b[0] * rn[0].x + b[1] * rn[1].x + b[2] * rn[2].x;
+  n0[1] = b[0] * rn[0].y + b[1] * rn[1].y + b[2] * rn[2].y;
+  n0[2] = b[0] * rn[0].z + b[1] * rn[1].z + b[2] * rn[2].z;
+  cofactor_apply_lanes(J, n0, c);
+  Lanes l2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
+  Lanes inv = Lanes(1.0f) / sqrt(l2);
+  for (int r = 0; r < 3; ++r) n[r] = inv * c[r];
+  Lanes l2b = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+  Lanes inv2 = Lanes(1.0f) / sqrt(l2b);
+  for (int r = 0; r < 3; ++r) n[r] = inv2 * n[r];
+  for (int l = 0; l < kLanes; ++l) {
+    if (s[l] < 0 || (l2[l] > 1e-30f && l2[l] <= 3.0e38f && l2b[l] > 1e-30f && l2b[l] <= 3.0e38f)) continue;
+    V3 v = deformed_column_normal(pv, column[l], rn, fv.sample_jacobian + 9 * (long long)s[l]);
+    n[0].set(l, v.x);
+    n[1].set(l, v.y);
+    n[2].set(l, v.z);
+  }
+}
+
 template <bool kNormals>
 void fit_patch_impl(const PlanView& pv, const FrameView& fv, const FitColumns& fc, int p,
                     float* out_g, float* out_n) {
@@ -44,65 +94,50 @@ void fit_patch_impl(const PlanView& pv, const FrameView& fv, const FitColumns& f
   const int* ps = pv.patch_samples + (long long)p * K;
   V3 rn[3];
   for (int k = 0; k < 3; ++k) rn[k] = load3(pv.patch_render_normal + 9 * (long long)p + 3 * k);
+  // The centre columns: the centre row's long sum.
   Lanes gc[3] = {0.0f, 0.0f, 0.0f}, nc[3] = {0.0f, 0.0f, 0.0f};
+  int s[kLanes], column[kLanes];
   for (int k0 = 0; k0 < fc.padded; k0 += kLanes) {
-    Lanes x[3], J[9];
     for (int l = 0; l < kLanes; ++l) {
-      if (k0 + l < fc.centre) {
-        const long long s = ps[k0 + l];
-        for (int r = 0; r < 3; ++r) x[r].set(l, fv.sample_value[3 * s + r]);
-        if (kNormals)
-          for (int r = 0; r < 9; ++r) J[r].set(l, fv.sample_jacobian[9 * s + r]);
-      } else {  // padding: weight 0, finite values, identity Jacobian
-        for (int r = 0; r < 3; ++r) x[r].set(l, 0.0f);
-        if (kNormals)
-          for (int r = 0; r < 9; ++r) J[r].set(l, r % 4 == 0 ? 1.0f : 0.0f);
-      }
+      column[l] = k0 + l;
+      s[l] = k0 + l < fc.centre ? ps[k0 + l] : -1;
     }
+    Lanes x[3], n[3];
+    columns_on_lanes<kNormals>(pv, fv, s, fc.bary.data() + k0, fc.padded, column, rn, x, n);
     Lanes m;
     for (int l = 0; l < kLanes; ++l) m.set(l, fc.weight[k0 + l]);
     for (int r = 0; r < 3; ++r) gc[r] += m * x[r];
-    if (!kNormals) continue;
-    // deformed_column_normal on lanes: interpolated rest normal, cofactor, two normalizations.
-    Lanes b[3], n0[3], c[3], n[3];
-    for (int i = 0; i < 3; ++i)
-      for (int l = 0; l < kLanes; ++l) b[i].set(l, fc.bary[(size_t)i * fc.padded + k0 + l]);
-    n0[0] = b[0] * rn[0].x + b[1] * rn[1].x + b[2] * rn[2].x;
-    n0[1] = b[0] * rn[0].y + b[1] * rn[1].y + b[2] * rn[2].y;
-    n0[2] = b[0] * rn[0].z + b[1] * rn[1].z + b[2] * rn[2].z;
-    cofactor_apply_lanes(J, n0, c);
-    Lanes l2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
-    Lanes inv = Lanes(1.0f) / sqrt(l2);
-    for (int r = 0; r < 3; ++r) n[r] = inv * c[r];
-    Lanes l2b = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
-    Lanes inv2 = Lanes(1.0f) / sqrt(l2b);
-    for (int r = 0; r < 3; ++r) n[r] = inv2 * n[r];
-    // Lanes outside normalized_or's plain range (a degenerate or huge cofactor) redo the
-    // shared scalar code, fallbacks included.
-    for (int l = 0; l < kLanes && k0 + l < fc.centre; ++l) {
-      if (l2[l] > 1e-30f && l2[l] <= 3.0e38f && l2b[l] > 1e-30f && l2b[l] <= 3.0e38f) continue;
-      V3 v = deformed_column_normal(pv, k0 + l, rn, fv.sample_jacobian + 9 * (long long)ps[k0 + l]);
-      n[0].set(l, v.x);
-      n[1].set(l, v.y);
-      n[2].set(l, v.z);
+    if (kNormals)
+      for (int r = 0; r < 3; ++r) nc[r] += m * n[r];
+  }
+  // The 9 constraint columns feed every row (as in fit_patch_into): rows on lanes.
+  Lanes ag[3][2] = {}, an[3][2] = {};
+  for (int c0 = 0; c0 < 16; c0 += kLanes) {
+    for (int l = 0; l < kLanes; ++l) {
+      column[l] = fc.centre + c0 + l;
+      s[l] = c0 + l < 9 ? ps[fc.centre + c0 + l] : -1;
     }
-    for (int r = 0; r < 3; ++r) nc[r] += m * n[r];
+    Lanes x[3], n[3];
+    columns_on_lanes<kNormals>(pv, fv, s, fc.cbary.data() + c0, 16, column, rn, x, n);
+    for (int l = 0; l < kLanes && c0 + l < 9; ++l) {
+      const float* mt = fc.crows.data() + 16 * (c0 + l);
+      Lanes m[2];
+      for (int h = 0; h < 2; ++h)
+        for (int i = 0; i < kLanes; ++i) m[h].set(i, mt[h * kLanes + i]);
+      for (int h = 0; h < 2; ++h)
+        for (int r = 0; r < 3; ++r) {
+          ag[r][h] += m[h] * x[r][l];
+          if (kNormals) an[r][h] += m[h] * n[r][l];
+        }
+    }
   }
   V3 g[10], nn[10];
-  for (int r = 0; r < 10; ++r) g[r] = nn[r] = v3(0, 0, 0);
-  g[kCentre] = v3(sum(gc[0]), sum(gc[1]), sum(gc[2]));
-  nn[kCentre] = v3(sum(nc[0]), sum(nc[1]), sum(nc[2]));
-  // The 9 constraint columns feed every row (as in fit_patch_into).
-  for (int k = fc.centre; k < K; ++k) {
-    const long long s = ps[k];
-    V3 x = load3(fv.sample_value + 3 * s), n = v3(0, 0, 0);
-    if (kNormals) n = deformed_column_normal(pv, k, rn, fv.sample_jacobian + 9 * s);
-    for (int r = 0; r < 10; ++r) {
-      float m = pv.fit_matrix[r * K + k];
-      g[r] += m * x;
-      if (kNormals) nn[r] += m * n;
-    }
+  for (int r = 0; r < 10; ++r) {
+    g[r] = v3(ag[0][r / kLanes][r % kLanes], ag[1][r / kLanes][r % kLanes], ag[2][r / kLanes][r % kLanes]);
+    nn[r] = v3(an[0][r / kLanes][r % kLanes], an[1][r / kLanes][r % kLanes], an[2][r / kLanes][r % kLanes]);
   }
+  g[kCentre] += v3(sum(gc[0]), sum(gc[1]), sum(gc[2]));
+  nn[kCentre] += v3(sum(nc[0]), sum(nc[1]), sum(nc[2]));
   finish_patch(pv, fv, p, g);
   for (int r = 0; r < 10; ++r) {
     store3(out_g + 3 * r, g[r]);

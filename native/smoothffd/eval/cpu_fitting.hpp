@@ -1,11 +1,11 @@
-// Stage 3 (constrained fitting, Eq. 13) on the CPU, with the centre row's long sum vectorized.
+// Stage 3 (constrained fitting, Eq. 13) on the CPU, vectorized.
 //
-// In fit_patch_into (eval/stages.hpp) almost all the time goes to the centre row: every
-// fitting column needs its sample and its deformed render normal (cofactor of the Jacobian,
-// two normalizations). Here kLanes columns of one patch run together on Lanes; the 9
-// constraint columns, which feed every row, and finish_patch stay the shared scalar code. The
-// result equals fit_patch_into's up to float rounding (the centre sum is added in another
-// order); the CUDA evaluator runs fit_patch_into itself.
+// Every fitting column needs its sample and its deformed render normal (cofactor of the
+// Jacobian, two normalizations): here kLanes columns of one patch run together on Lanes,
+// the K - 9 centre columns (which feed the centre row only) and then the 9 constraint
+// columns, whose products with all 10 rows of M_r run with the rows on lanes. finish_patch
+// stays the shared scalar code. The result equals fit_patch_into's (eval/stages.hpp) up to
+// float rounding (the sums are added in another order).
 #pragma once
 
 #include <vector>
@@ -21,6 +21,11 @@ struct FitColumns {
   int padded = 0;            // centre rounded up to a multiple of kLanes
   std::vector<float> bary;   // 3 x padded: column_bary transposed ((1, 0, 0) in the padding)
   std::vector<float> weight; // padded: M_r's centre row (0 in the padding)
+  // The 9 constraint columns, padded to 2 kLanes: their barycentric points (3 x 16, (1, 0, 0)
+  // in the padding) and M_r's entries in them with the rows on lanes (16 x 16: column c's 10
+  // rows at 16 c, 0 in the padding).
+  std::vector<float> cbary;
+  std::vector<float> crows;
 };
 
 FitColumns make_fit_columns(const Plan& plan);

@@ -33,8 +33,22 @@ void fit_patches(const PlanView& pv, const FrameView& fv, const FitColumns& fc, 
                     fv.patch_normal ? fv.patch_normal + 30 * p : nullptr);
 }
 
-void tessellate_positions(const PlanView& pv, const FrameView& fv, long long b, long long e) {
-  for (long long o = b; o < e; ++o) tessellate_position(pv, fv, (int)o);
+void tessellate_positions(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb,
+                          const OwnedPoints& ov, long long b, long long e, float* points) {
+  const int P = gb.padded;
+  const int* start = ov.start.data();
+  const int* pairs = ov.pairs.data();
+  for (long long p = b; p < e; ++p) {
+    if (start[p] == start[p + 1]) continue;
+    patch_grid_points(pv, fv, gb, (int)p, points);
+    for (int i = start[p]; i < start[p + 1]; ++i) {
+      const int g = pairs[2 * i];
+      float* out = fv.positions + 3 * (size_t)pairs[2 * i + 1];
+      out[0] = points[g];
+      out[1] = points[P + g];
+      out[2] = points[2 * P + g];
+    }
+  }
 }
 
 void tessellate_normals(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb,
@@ -54,15 +68,17 @@ void tessellate_normals(const PlanView& pv, const FrameView& fv, const GridBasis
 }
 
 void tessellate_render_normals(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb,
-                               const int* owned_start, const int* owned, long long b, long long e,
-                               float* normals, float* render_normals) {
+                               const OwnedPoints& rv, long long b, long long e, float* normals,
+                               float* render_normals) {
   const int P = gb.padded;
+  const int* start = rv.start.data();
+  const int* pairs = rv.pairs.data();
   for (long long p = b; p < e; ++p) {
-    if (owned_start[p] == owned_start[p + 1]) continue;
+    if (start[p] == start[p + 1]) continue;
     patch_grid_normals(pv, fv, gb, (int)p, normals);
-    for (int i = owned_start[p]; i < owned_start[p + 1]; ++i) {
-      const int g = owned[2 * i];
-      float* out = render_normals + 3 * (size_t)owned[2 * i + 1];
+    for (int i = start[p]; i < start[p + 1]; ++i) {
+      const int g = pairs[2 * i];
+      float* out = render_normals + 3 * (size_t)pairs[2 * i + 1];
       out[0] = normals[g];
       out[1] = normals[P + g];
       out[2] = normals[2 * P + g];

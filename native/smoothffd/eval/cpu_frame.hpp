@@ -28,16 +28,18 @@ struct CpuFrameKernels {
   // Geometry patches into fv.patch_control, normal patches into fv.patch_normal unless null.
   void (*fit_patches)(const PlanView& pv, const FrameView& fv, const FitColumns& fc, long long b,
                       long long e);
-  void (*tessellate_positions)(const PlanView& pv, const FrameView& fv, long long b, long long e);
+  // Positions of the output vertices patches [b, e) own (ov) into fv.positions; scratch:
+  // 3 * gb.padded floats. The sub-vertices' positions are their samples (copied apart).
+  void (*tessellate_positions)(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb,
+                               const OwnedPoints& ov, long long b, long long e, float* scratch);
   // Corner normals of patches [b, e) into fv.corner_normals; scratch: 3 * gb.padded floats.
   void (*tessellate_normals)(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb,
                              long long b, long long e, float* scratch);
   // The compact layout's normals (evaluator.hpp) of patches [b, e): each patch's grid normals
-  // written to the render vertices it owns, listed as (grid point, render vertex) pairs in
-  // owned[2 * owned_start[p], 2 * owned_start[p + 1]).
+  // written to the render vertices it owns (rv).
   void (*tessellate_render_normals)(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb,
-                                    const int* owned_start, const int* owned, long long b, long long e,
-                                    float* scratch, float* render_normals);
+                                    const OwnedPoints& rv, long long b, long long e, float* scratch,
+                                    float* render_normals);
 };
 
 // Data, not code: the tables hold the addresses of the per-ISA functions.

@@ -15,9 +15,52 @@ GridBasisLanes make_grid_basis_lanes(const Plan& plan) {
     for (int k = 0; k < 10; ++k) gb.basis[(size_t)k * gb.padded + g] = plan.grid_basis[10 * (size_t)g + k];
   return gb;
 }
+
+namespace {
+// pairs (patch, grid point) per index i -> per patch (grid point, first + i).
+OwnedPoints owned_by_patch(int patches, const int* owner, long long count, int first) {
+  OwnedPoints o;
+  o.start.assign((size_t)patches + 1, 0);
+  for (long long i = 0; i < count; ++i) o.start[(size_t)owner[2 * i] + 1]++;
+  for (int q = 0; q < patches; ++q) o.start[q + 1] += o.start[q];
+  o.pairs.resize(2 * (size_t)count);
+  std::vector<int> fill(o.start.begin(), o.start.end() - 1);
+  for (long long i = 0; i < count; ++i) {
+    const int k = fill[owner[2 * i]]++;
+    o.pairs[2 * (size_t)k] = owner[2 * i + 1];
+    o.pairs[2 * (size_t)k + 1] = (int)(first + i);
+  }
+  return o;
+}
+}  // namespace
+
+OwnedPoints owned_output_vertices(const Plan& plan) {
+  return owned_by_patch(plan.patches, plan.output_owner.data(),
+                        (long long)plan.output_vertices - plan.sub_vertices, plan.sub_vertices);
+}
+
+OwnedPoints owned_render_vertices(const Plan& plan) {
+  return owned_by_patch(plan.patches, plan.render_owner.data(), plan.render_vertices, 0);
+}
 #endif  // SFFD_ISA_PRIMARY
 
 SFFD_ISA_BEGIN  // per-frame part: one copy per ISA (core/isa.hpp)
+
+void patch_grid_points(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb, int p,
+                       float* points) {
+  const float* cp = fv.patch_control + 30 * (long long)p;
+  const int P = gb.padded;
+  for (int g0 = 0; g0 < pv.grid; g0 += kLanes) {
+    Lanes x[3] = {0.0f, 0.0f, 0.0f};
+    for (int k = 0; k < 10; ++k) {  // eval_cubic on lanes
+      Lanes b;
+      for (int l = 0; l < kLanes; ++l) b.set(l, gb.basis[(size_t)k * P + g0 + l]);
+      for (int r = 0; r < 3; ++r) x[r] += b * cp[3 * k + r];
+    }
+    for (int r = 0; r < 3; ++r)
+      for (int l = 0; l < kLanes; ++l) points[r * P + g0 + l] = x[r][l];
+  }
+}
 
 void patch_grid_normals(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb, int p,
                         float* normals) {

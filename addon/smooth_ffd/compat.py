@@ -321,6 +321,19 @@ def write_custom_normals(mesh, normals, domain='CORNER'):
     return "custom_set"
 
 
+def write_vertex_normals(mesh, normals):
+    """normals: (V, 3) float32 unit vectors, one per vertex, for a result whose normals never
+    split. 4.5+: the point-domain custom_normal attribute (a memcpy); before,
+    normals_split_custom_set_from_vertices, which takes a sixth of the values the per-corner
+    call does (a vertex has about six corners in a dense triangle mesh). Returns the path."""
+    if HAS_FREE_NORMAL_ATTRIBUTE:
+        return write_custom_normals(mesh, normals, 'POINT')
+    enable_split_normals(mesh)
+    mesh.normals_split_custom_set_from_vertices(
+        np.ascontiguousarray(normals, dtype=np.float32).reshape(-1, 3))
+    return "custom_set_from_vertices"
+
+
 def set_loop_starts(mesh, loop_starts, loop_totals):
     mesh.polygons.foreach_set("loop_start", loop_starts)
     if VERSION < (4, 0):

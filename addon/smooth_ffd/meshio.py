@@ -156,25 +156,60 @@ def write_positions(mesh, res):
     compat.set_positions(mesh, res.positions)
 
 
-def vertex_corners(res):
-    """One corner of each output vertex, when the result's normals never split (no sharp
-    edges) and Blender takes point-domain custom normals (4.5+); else None.
+def is_compact(res):
+    """Whether res is the core's compact layout (normals once per render vertex)."""
+    return hasattr(res, "render_triangles")
 
-    Without sharp edges the corners of a vertex carry the same normal up to rounding (the
-    normal patches of smooth neighbours meet; tests/blender/check_normals.py), so one normal
-    a vertex says the same in a quarter of the bytes: at level 10 that is 29 instead of 171
-    MB to write each update, and Blender copies the array once more on the first write after
-    each evaluation (it is still shared with the evaluated mesh). Once per plan."""
+
+def write_normals(mesh, res, scratch):
+    """Exact custom normals from a core result, the cheapest way this Blender takes them;
+    returns the path used. scratch: a dict the caller keeps while the plan lasts (per-plan
+    facts and buffers).
+
+    Compact layout (the add-on's): where no normal splits (no render vertex repeats an output
+    vertex) one normal a vertex: on 4.5+ the point-domain `custom_normal` attribute, on
+    3.4-4.4 normals_split_custom_set_from_vertices; else one a corner, gathered through
+    render_triangles (one row per corner, written into a buffer kept in scratch).
+
+    Corner layout (where normals split, modifier_update._layout): a normal per corner from the
+    core, written as it is; on 4.5+, where nothing splits after all (LAYOUT forced), one
+    corner's normal a vertex (point domain). scratch["splits"]: whether the plan has more
+    render vertices than output vertices."""
+    if is_compact(res):
+        if "per_vertex" not in scratch:   # once per plan
+            rv = np.asarray(res.render_vertex)
+            n = len(res.positions)
+            identity = len(rv) == n and np.array_equal(rv, np.arange(n, dtype=rv.dtype))
+            scratch["per_vertex"] = identity or \
+                int(np.bincount(rv, minlength=n).max(initial=0)) <= 1
+            scratch["identity"] = identity
+        if scratch["per_vertex"]:
+            normals = res.normals
+            if not scratch["identity"]:   # loose input vertices: no render vertex, no normal
+                normals = np.zeros((len(res.positions), 3), np.float32)
+                normals[res.render_vertex] = res.normals
+            return compat.write_vertex_normals(mesh, normals)
+        if "gather" not in scratch:       # once per plan: np.take is fastest with intp
+            idx = np.asarray(res.render_triangles).reshape(-1).astype(np.intp)
+            scratch["gather"] = (idx, np.empty((len(idx), 3), np.float32))
+        idx, buf = scratch["gather"]
+        np.take(res.normals, idx, axis=0, out=buf)
+        return compat.write_custom_normals(mesh, buf)
+    corner_normals = np.asarray(res.corner_normals).reshape(-1, 3)
+    if "vertex_corner" not in scratch:
+        scratch["vertex_corner"] = None if scratch.get("splits", True) else _vertex_corners(res)
+    if scratch["vertex_corner"] is not None:
+        return compat.write_custom_normals(mesh, corner_normals[scratch["vertex_corner"]],
+                                           'POINT')
+    return compat.write_custom_normals(mesh, corner_normals)
+
+
+def _vertex_corners(res):
+    """Corner layout: one corner of each output vertex when the result has no sharp edges and
+    Blender takes point-domain custom normals (4.5+); else None."""
     if not compat.HAS_FREE_NORMAL_ATTRIBUTE or len(res.sharp_edges):
         return None
     tri = np.asarray(res.triangles).ravel()
     corner = np.zeros(len(res.positions), dtype=np.int64)  # loose vertices: any normal
     corner[tri] = np.arange(tri.size)
     return corner
-
-
-def write_normals(mesh, res, vertex_corner=None):
-    corner_normals = np.asarray(res.corner_normals).reshape(-1, 3)
-    if vertex_corner is not None:
-        return compat.write_custom_normals(mesh, corner_normals[vertex_corner], 'POINT')
-    return compat.write_custom_normals(mesh, corner_normals)

@@ -25,7 +25,8 @@ class _State:
         self.deformer = None
         self.plan_key = None
         self.result = None        # the last core Result: its arrays are reused (out=)
-        self.vertex_corner = None  # (plan_key, meshio.vertex_corners) of the current plan
+        self.scratch = (None, {})  # (plan_key, meshio.write_normals' per-plan facts, buffers)
+        self.outs = {}            # layout -> the last result in it (out=; LAYOUT may change)
         self.status_base = None   # last "OK ..." status, without the stack warning
         self.above = 0            # enabled modifiers above this one, as last reported
 
@@ -205,14 +206,17 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
         plan_key = (source.key, lattice.structure_key(), level, backend)
         if st.deformer is None or st.plan_key != plan_key:
             st.deformer = st.result = None
+            st.outs = {}
             with _progress(len(source.corner_vertices) * level * level > 2_000_000):
                 st.deformer = core.make_deformer(source, lattice, level, backend)
             st.plan_key = plan_key
         # out=: overwrite the previous update's arrays in place (no fresh pages each edit).
         # Without exact normals (3.4-4.4 viewport: Blender shades the dense mesh from its own
         # geometry, _write_result) the core computes positions only: the same positions in
-        # well under half the time (res.corner_normals is None then).
-        res = st.result = st.deformer.deform(lattice, out=st.result, normals=exact)
+        # well under half the time (res.normals is None then).
+        layout = LAYOUT or _layout(st.deformer.plan)
+        res = st.result = st.outs[layout] = st.deformer.deform(
+            lattice, out=st.outs.get(layout), normals=exact, layout=layout)
         deform_calls["normals" if exact else "positions_only"] += 1
         t1 = time.perf_counter()
         times = _write_result(obj, ro, res, source, inputs.digest(plan_key), exact, st)
@@ -242,6 +246,21 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
               else f"{type(e).__name__}: {e}")
     return False
 
+
+# The core's output layout (docs/api.md), per plan (_layout); "compact" or "corners" forces
+# one (blender_scenes/bench_layout.py measures them against each other).
+LAYOUT = None
+
+
+def _layout(plan):
+    """The cheapest layout for this plan's normals. Where no normal splits, "compact": one
+    normal per render vertex = per output vertex, which Blender takes as per-vertex custom
+    normals (meshio.write_normals), a third to a sixth of the per-corner values. Where normals
+    split (more render vertices than output vertices), Blender needs one normal a corner, and
+    the core's "corners" layout writes them directly, cheaper than gathering the compact
+    normals through render_triangles in numpy (bench_layout.py: at level 10, 89 against 184
+    ms on bpy 5.0)."""
+    return "corners" if plan.render_vertex_count > plan.output_vertices else "compact"
 
 # How many results were computed, and where (tests and benchmarks read these).
 counters = {"computed": 0, "early": 0, "post": 0, "early_errors": 0}
@@ -402,9 +421,10 @@ def _write_result(obj, ro, res, source, topology_token, exact, st):
         carry_ms = 1e3 * (time.perf_counter() - tc)
     t1 = time.perf_counter()
     if exact:
-        if st.vertex_corner is None or st.vertex_corner[0] is not st.plan_key:
-            st.vertex_corner = (st.plan_key, meshio.vertex_corners(res))
-        path = meshio.write_normals(mesh, res, st.vertex_corner[1])
+        if st.scratch[0] is not st.plan_key:
+            plan = st.deformer.plan
+            st.scratch = (st.plan_key, {"splits": plan.render_vertex_count > plan.output_vertices})
+        path = meshio.write_normals(mesh, res, st.scratch[1])
     else:
         path = "from geometry"   # 3.4-4.4 viewport: Blender's own normals of the dense mesh
     mesh[NORMALS_KEY] = mode

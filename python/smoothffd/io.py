@@ -638,9 +638,12 @@ def _write_polygon_rows(fh, stack, slot, offsets, chunk=500_000):
 
 
 def write_result(path, result, header=None):
-    """Write a ``smoothffd.Result`` (positions, triangles, corner normals, UVs) as OBJ.
+    """Write a ``smoothffd.Result`` or ``CompactResult`` (positions, triangles, normals, UVs)
+    as OBJ.
 
-    A positions-only result (``deform(..., normals=False)``, ``corner_normals`` None) is
-    written without ``vn`` lines, like a result without UVs has no ``vt``."""
-    write_obj(path, result.positions, result.triangles, result.corner_normals, result.uvs,
-              header=header)
+    A positions-only result (``deform(..., normals=False)``, normals None) is written without
+    ``vn`` lines, like a result without UVs has no ``vt``. Either layout gives the same file."""
+    normals = result.corner_normals
+    if callable(normals):  # CompactResult: one normal per render vertex, gathered per corner
+        normals = normals()
+    write_obj(path, result.positions, result.triangles, normals, result.uvs, header=header)

@@ -237,6 +237,12 @@ PYBIND11_MODULE(_core, m) {
              }
              return out;
            })
+      .def_property_readonly("piece_counts",
+                             [](const LatticeSpec& s) {
+                               return py::make_tuple(s.axes[0].pieces().size(), s.axes[1].pieces().size(),
+                                                     s.axes[2].pieces().size());
+                             },
+                             "polynomial pieces (knot spans) per axis; build_plan takes at most 1023")
       .def_property_readonly("degrees",
                              [](const LatticeSpec& s) {
                                return py::make_tuple(s.axes[0].degree(), s.axes[1].degree(), s.axes[2].degree());
@@ -350,7 +356,7 @@ PYBIND11_MODULE(_core, m) {
       [](Arr<double> positions, Arr<int> corner_vertex, Arr<int> face_offset,
          std::optional<Arr<float>> corner_normals, std::optional<Arr<float>> uvs,
          std::optional<Arr<float>> vertex_weights, const LatticeSpec& spec, int level,
-         double sharp_angle_degrees) {
+         double sharp_angle_degrees, double memory_limit) {
         InputMesh mesh;
         mesh.positions = to_vector(positions);
         mesh.corner_vertex = to_vector(corner_vertex);
@@ -361,6 +367,7 @@ PYBIND11_MODULE(_core, m) {
         PlanOptions opt;
         opt.level = level;
         opt.sharp_angle_degrees = sharp_angle_degrees;
+        opt.memory_limit = memory_limit;
         std::shared_ptr<Plan> plan;
         {
           py::gil_scoped_release release;
@@ -370,7 +377,10 @@ PYBIND11_MODULE(_core, m) {
       },
       py::arg("positions"), py::arg("corner_vertices"), py::arg("face_offsets"),
       py::arg("corner_normals"), py::arg("uvs"), py::arg("vertex_weights"), py::arg("lattice"),
-      py::arg("level"), py::arg("sharp_angle_degrees") = 1.0);
+      py::arg("level"), py::arg("sharp_angle_degrees") = 1.0, py::arg("memory_limit") = 0.0);
+  m.def("estimate_plan_bytes", &estimate_plan_bytes, py::arg("patches"), py::arg("sub_vertices"),
+        py::arg("level"), py::arg("fit_degree"), py::arg("uvs"),
+        "bytes of a plan, one frame's buffers and one per-corner result (build_plan's memory_limit check)");
 
   m.def("cpu_isa", &cpu_isa,
         "the CPU evaluator's default per-frame code path on this CPU: 'x86-64-v3' (AVX2 + FMA, "

@@ -71,19 +71,27 @@ def cuda_status():
 
 
 def _available_memory():
+    """Bytes the system can give without swapping: Linux's MemAvailable (free memory plus the
+    page cache and other memory it can reclaim), else free pages, else None (no check)."""
+    try:
+        with open("/proc/meminfo", "rb") as fh:
+            for line in fh:
+                if line.startswith(b"MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
     try:
         return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
     except (ValueError, OSError, AttributeError):
         return None
 
 
-def _estimate_bytes(mesh, level):
-    # Lower bound (clipping adds patches): per output triangle 3 indices, 9 normal floats,
-    # 6 uv floats and a face index, plus about half a vertex of positions and rest positions.
-    tris = int(np.sum(np.diff(mesh.face_offsets) - 2))
-    t = tris * level * level
-    per_tri = 4 * (3 + 9 + (6 if mesh.uvs is not None else 0) + 1) + 0.5 * 4 * 6
-    return int(t * per_tri * 2)  # plan copy + result
+def _estimate_bytes(mesh, lattice, level):
+    """Lower bound before planning: the input's triangles as patches, as if no knot plane cut
+    them (build_plan checks the real count after clipping against memory_limit)."""
+    tris = float(np.sum(np.diff(mesh.face_offsets) - 2))
+    return _core.estimate_plan_bytes(tris, float(mesh.vertex_count), level,
+                                     sum(lattice.degrees), mesh.uvs is not None)
 
 
 # The core computes in float32: magnitudes near its limit (3.4e38) overflow to inf/NaN in the
@@ -127,18 +135,20 @@ class Deformer:
         # The evaluators keep per-frame buffers, and native work runs without the GIL: calls
         # from several threads take turns instead of racing on those buffers.
         self._lock = threading.Lock()
-        need, avail = _estimate_bytes(mesh, self.level), _available_memory()
+        need, avail = _estimate_bytes(mesh, lattice, self.level), _available_memory()
         if avail is not None and need > avail:
-            raise MemoryError(f"level {self.level}: the output needs at least {need / 2**30:.1f} GiB, "
-                              f"only {avail / 2**30:.1f} GiB of memory is available")
+            raise MemoryError(f"level {self.level}: the plan and output need at least {need / 2**30:.2f} "
+                              f"GiB, only {avail / 2**30:.2f} GiB of memory is available")
         self._plan_for(lattice)
 
     def _plan_for(self, lattice):
         t0 = time.perf_counter()
         m = self.mesh
+        avail = _available_memory()
         self.plan = _core.build_plan(m.positions, m.corner_vertices, m.face_offsets,
                                      m.corner_normals, m.uvs, m.vertex_weights,
-                                     lattice._spec, self.level)
+                                     lattice._spec, self.level,
+                                     memory_limit=float(avail) if avail else 0.0)
         self.plan_ms = (time.perf_counter() - t0) * 1e3
         self.lattice = lattice
         self._key = lattice.structure_key()

@@ -31,6 +31,13 @@ class _Lattice:
             raise ValueError(f"points: expected shape (N, 3), got {pts.shape}")
         return self._spec.evaluate(pts, self._values.reshape(-1, 3), np.ones(len(pts)))
 
+    def _check_pieces(self, name):
+        """The core numbers a sample's knot span in 10 bits an axis (build_plan: at most 1023)."""
+        for a, n in enumerate(self._spec.piece_counts):
+            if n > 1023:
+                raise ValueError(f"{name}: axis {'uvw'[a]} has {n} knot spans (polynomial pieces); "
+                                 "the core handles at most 1023 an axis")
+
     def knot_planes(self):
         """Per axis, the values c of the planes s_a(p) = c where the polynomial piece changes."""
         return list(self._spec.planes())
@@ -122,6 +129,7 @@ class BSplineLattice(_Lattice):
         self._greville = self._greville_points(kv, counts, lo, hi, bmin, bmax)
         self._values = cp - self._greville
         self._spec = _core.LatticeSpec.bspline(list(self.degree), kv, list(counts), self._map)
+        self._check_pieces("control_points")
         self._key = ("bspline", self.degree, counts, tuple(tuple(k) for k in kv),
                      tuple(bmin), tuple(bmax))
 
@@ -218,6 +226,7 @@ class BlenderLattice(_Lattice):
             self._map[a, 3] = (inv[a, 3] - f) / d
         self._values = self.strength * np.einsum("rc,uvwc->uvwr", m[:3, :3], pts - rest)
         self._spec = _core.LatticeSpec.blender(list(interp), list(counts), self._map)
+        self._check_pieces("points")
         self._key = ("blender", interp, counts, tuple(self._map.ravel()))
 
     def with_points(self, points):

@@ -125,6 +125,12 @@ def parse_lattice(doc, source=None):
             if shape[a] < degree[a] + 1:
                 raise err(f"shape[{a}]", f"degree {degree[a]} needs at least {degree[a] + 1} "
                                          f"points, got {shape[a]}")
+            # What build_plan takes (lattice._check_pieces): the spans inside the box and one
+            # piece on each side outside it.
+            if shape[a] - degree[a] + 2 > 1023:
+                raise err(f"shape[{a}]", f"{shape[a]} points of degree {degree[a]} make "
+                                         f"{shape[a] - degree[a] + 2} polynomial pieces; the core "
+                                         "handles at most 1023 an axis")
         knots = doc.get("knots")
         if knots is not None:
             if not isinstance(knots, list) or len(knots) != 3:

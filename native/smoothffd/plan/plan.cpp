@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 
@@ -256,6 +257,21 @@ size_t Plan::bytes() const {
   return b;
 }
 
+double estimate_plan_bytes(double P, double SV, int level, int fit_degree, bool uvs) {
+  const double L = level, n = std::max(3, fit_degree);
+  const double K = (n + 1) * (n + 2) / 2 + 9, G = (L + 1) * (L + 2) / 2;
+  const double E = 1.5 * P + SV;                        // edges of a closed triangle mesh
+  const double T = P * L * L;                           // output triangles
+  const double N = SV + E * (L - 1) + P * (L - 1) * (L - 2) / 2;  // output vertices
+  const double S = SV + E * (n - 1) + P * (n - 1) * (n - 2) / 2;  // samples
+  const double per_patch = 4 * K + 4 * (3 + 3 + 9 + 9 + 1 + 1) + 72 + 1 + 8 * G + 240 + 240;
+  const double per_edge = 4 * (2 + 2 + 2 + 4) + 4 + 1 + 24;
+  const double per_triangle = 2 * (12 + 4 + 12 + (uvs ? 24 : 0)) + 36;  // plan + numpy copy, normals
+  const double per_vertex = 2 * (12 + 8 + 12) + 12;     // rest, owners (plan + copy), positions
+  const double per_sample = 12 + 4 + 4 + 48;            // position, piece, weight, F and J
+  return P * per_patch + E * per_edge + T * per_triangle + N * per_vertex + S * per_sample;
+}
+
 Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt) {
   validate(mesh);
   if (opt.level < 1) throw std::invalid_argument("level: must be at least 1");
@@ -282,6 +298,18 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   RestSurface rest = build_rest_surface(X, tv, in_edges, in_sharp, tcn);
   ClipResult clip = clip_to_knot_boxes(X, tv, lattice);
   const int SV = clip.sub_vertices(), P = clip.patches();
+  if (opt.memory_limit > 0) {
+    const double need = estimate_plan_bytes(P, SV, opt.level, lattice.degree_sum(), !mesh.corner_uv.empty());
+    if (need > opt.memory_limit) {
+      char msg[400];
+      std::snprintf(msg, sizeof(msg),
+                    "level %d: %d triangles clipped by the lattice's knot planes into %d patches need "
+                    "about %.2f GiB (plan, frame buffers and one result), more than the %.2f GiB "
+                    "available; lower the level or use a lattice with fewer knot spans across the mesh",
+                    opt.level, (int)(tv.size() / 3), P, need / 1073741824.0, opt.memory_limit / 1073741824.0);
+      throw PlanTooLarge(msg);
+    }
+  }
   std::vector<double> moved(clip.flat);
   std::vector<double> sub_weight(SV, 1.0);
   for (int v = 0; v < SV; ++v) {

@@ -11,7 +11,9 @@
 #pragma once
 
 #include <cstdint>
+#include <new>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "smoothffd/lattice/lattice_spec.hpp"
@@ -30,7 +32,29 @@ struct InputMesh {
 struct PlanOptions {
   int level = 10;                      // L: L^2 output triangles a patch
   double sharp_angle_degrees = 1.0;    // corner normals further apart than this are split
+  // Refuse (PlanTooLarge) a plan whose tables, one frame's evaluator buffers and one
+  // per-corner result would take more than this many bytes (estimate_plan_bytes); 0: no
+  // limit. Checked right after the knot-box clipping, which decides the patch count, before
+  // any table of the patches' or the output's size is allocated.
+  double memory_limit = 0;
 };
+
+// What build_plan throws when PlanOptions::memory_limit is exceeded (MemoryError in Python),
+// with the estimate and the limit in its message.
+class PlanTooLarge : public std::bad_alloc {
+ public:
+  explicit PlanTooLarge(std::string message) : message_(std::move(message)) {}
+  const char* what() const noexcept override { return message_.c_str(); }
+
+ private:
+  std::string message_;
+};
+
+// Bytes that a plan of `patches` patches and `sub_vertices` sub-vertices at `level` with
+// fitting degree `fit_degree` holds (Plan::bytes()), with one frame's CPU evaluator buffers
+// and one per-corner result and its static arrays in numpy: within about 20% of the
+// measured sum (tests/test_memory.py).
+double estimate_plan_bytes(double patches, double sub_vertices, int level, int fit_degree, bool uvs);
 
 // Float copy of one axis piece for the evaluators (see lattice/axis_basis.hpp).
 struct AxisPieceF {

@@ -1,0 +1,90 @@
+"""Memory: build_plan refuses, with the size in the message, a plan whose tables, frame
+buffers and result would not fit (checked after the knot-box clipping, which decides the
+patch count, before any large table exists); the estimate is held to what real plans take;
+lattices with more knot spans than the core numbers are refused where they are made."""
+
+import importlib
+import json
+
+import numpy as np
+import pytest
+
+import meshes
+import smoothffd
+from smoothffd import _core, lattice_json
+
+deform = importlib.import_module("smoothffd.deform")  # the module (smoothffd.deform is the function)
+
+
+def two_triangles():
+    V = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float) * 0.99
+    return smoothffd.Mesh(V, np.array([[0, 1, 2], [0, 2, 3]]))
+
+
+def measured_bytes(d, result):
+    """What a Deformer holds after one per-corner frame: the plan's tables, the CPU
+    evaluator's per-frame buffers, the result and the static arrays handed to numpy."""
+    p = d.plan
+    static = sum(a.nbytes for a in d._static_arrays().values() if a is not None)
+    return p.bytes + 48 * p.samples + 240 * p.patches + static + result.positions.nbytes \
+        + result.corner_normals.nbytes
+
+
+@pytest.mark.parametrize("mesh,shape,degree,level", [
+    (meshes.sphere_mesh(2), (4, 4, 4), (2, 2, 2), 8),
+    (meshes.sphere_mesh(1), (6, 6, 6), (3, 3, 3), 4),
+    (two_triangles(), (12, 12, 2), (1, 1, 1), 6),
+])
+def test_estimate_matches_real_plans(mesh, shape, degree, level):
+    lat = smoothffd.BSplineLattice.identity([-1] * 3, [1] * 3, shape=shape, degree=degree)
+    d = smoothffd.Deformer(mesh, lat, level=level, device="cpu")
+    real = measured_bytes(d, d.deform())
+    p = d.plan
+    est = _core.estimate_plan_bytes(p.patches, p.sub_vertices, level, p.fit_degree, False)
+    assert 0.85 <= est / real <= 1.35, f"estimate {est / 2**20:.2f} MiB, real {real / 2**20:.2f} MiB"
+
+
+def test_clipping_into_too_many_patches_is_refused_before_allocating():
+    """Two triangles in a 300 x 300 x 2 lattice: about 180k patches after clipping, several
+    GiB at level 10. With a 1 GiB limit the plan is refused by name and size."""
+    mesh = two_triangles()
+    lat = smoothffd.BSplineLattice.identity([-1] * 3, [1] * 3, shape=(301, 301, 2), degree=(1, 1, 1))
+    with pytest.raises(MemoryError, match=r"patches need about [0-9.]+ GiB .* more than the 1.00 GiB"):
+        _core.build_plan(mesh.positions, mesh.corner_vertices, mesh.face_offsets, None, None, None,
+                         lat._spec, 10, memory_limit=float(2**30))
+    # The same lattice at level 1 fits the limit and plans.
+    plan = _core.build_plan(mesh.positions, mesh.corner_vertices, mesh.face_offsets, None, None, None,
+                            lat._spec, 1, memory_limit=float(2**30))
+    assert plan.patches > 100_000
+
+
+def test_deformer_checks_available_memory(monkeypatch):
+    monkeypatch.setattr(deform, "_available_memory", lambda: 2**30)
+    lat = smoothffd.BSplineLattice.identity([-1] * 3, [1] * 3, shape=(301, 301, 2), degree=(1, 1, 1))
+    with pytest.raises(MemoryError, match="GiB"):
+        smoothffd.Deformer(two_triangles(), lat, level=10, device="cpu")
+
+
+def test_available_memory_is_memavailable():
+    avail = deform._available_memory()
+    with open("/proc/meminfo") as fh:
+        info = {line.split(":")[0]: int(line.split()[1]) * 1024 for line in fh}
+    assert avail == info["MemAvailable"]
+    assert avail >= info["MemFree"]  # free pages alone (the old check) undercount
+
+
+def test_too_many_knot_spans_refused_where_the_lattice_is_made():
+    def lattice(n):
+        return smoothffd.BSplineLattice(np.zeros((n, 2, 2, 3)), degree=(1, 1, 1),
+                                        box_min=[-1, -1, -1], box_max=[1, 1, 1])
+
+    # n points of degree 1: n - 1 spans inside the box and one piece on each side outside it.
+    with pytest.raises(ValueError, match=r"control_points: axis u has 1101 knot spans"):
+        lattice(1100)
+    with pytest.raises(ValueError, match=r"axis u has 1024 knot spans"):
+        lattice(1023)
+    lattice(1022)  # 1023 pieces: the most the core takes
+    doc = {"format": lattice_json.FORMAT, "version": lattice_json.VERSION, "kind": "bspline",
+           "shape": [2000, 2, 2], "degree": [1, 1, 1], "control_points": []}
+    with pytest.raises(ValueError, match=r"shape\[0\].*2001 polynomial pieces"):
+        lattice_json.parse_lattice(json.loads(json.dumps(doc)))

@@ -112,6 +112,17 @@ def test_make_lattice_from_sample_mesh(tmp_path, capsys):
     assert (kw["box_min"] < v.min(0)).all() and (kw["box_max"] > v.max(0)).all()
 
 
+@pytest.mark.parametrize("box", [("-1e-3", "-2.5E+0", "-.5", "1e-3", "2", "5e-1"),
+                                 ("-1", "-1.5", "-0", "1", "1.5", "1e0")])
+def test_make_lattice_box_takes_negative_numbers_in_any_float_syntax(tmp_path, capsys, box):
+    out = tmp_path / "l.json"
+    rc, _, err = run_main(["make-lattice", "--box", *box, "--shape", 3, 3, 3, "-o", out], capsys)
+    assert rc == 0, err
+    _, kw = lattice_json.parse_lattice(json.loads(out.read_text()))
+    np.testing.assert_allclose(kw["box_min"], [float(v) for v in box[:3]])
+    np.testing.assert_allclose(kw["box_max"], [float(v) for v in box[3:]])
+
+
 def test_info_on_mesh_and_lattice(capsys):
     rc, out, _ = run_main(["info", DATA / "vase.obj"], capsys)
     assert rc == 0

@@ -16,6 +16,7 @@ import contextlib
 import json
 import math
 import os
+import re
 import sys
 import time
 
@@ -333,8 +334,18 @@ def cmd_info(args, progress):
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse reading a negative number in any float syntax (-1e-3, -.5, -2E+1) as a value,
+    not an option, as Python 3.13's argparse does (3.11's takes only -1 and -1.5: --box -1e-3
+    ... failed with "expected 6 arguments"). Subcommand parsers inherit the class."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-\.?\d")
+
+
 def build_parser():
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="python3 -m smoothffd",
         description="Smooth free-form deformation of polygon meshes (Cui & Feng 2015).")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")

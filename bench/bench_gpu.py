@@ -58,6 +58,14 @@ def benchmark(ev, plan, path, limit, vals, iters):
     return sffd_bench.benchmark(plan, vals, iters, path=path, shared_memory_limit=limit)
 
 
+def upsampling_baseline(plan, points, normals, pieces):
+    """The paper's uniform upsampling baseline (bench/native's, or a tree's own from before)."""
+    if hasattr(_core, "CudaUpsamplingBaseline"):
+        return _core.CudaUpsamplingBaseline(plan, points, normals, pieces)
+    import sffd_bench
+    return sffd_bench.UpsamplingBaseline(plan, points, normals, pieces)
+
+
 def cpu_time(plan, vals, reps):
     ev = _core.CpuEvaluator(plan)
     ev.evaluate(vals)
@@ -205,8 +213,7 @@ def main():
         if L not in plans:
             continue
         pts, nrm = pn_upsample(P, F, N, L)
-        base = _core.CudaUpsamplingBaseline(plans[L], pts.astype(np.float32), nrm.astype(np.float32),
-                                            pieces_of(lat, pts))
+        base = upsampling_baseline(plans[L], pts.astype(np.float32), nrm.astype(np.float32), pieces_of(lat, pts))
         bt = base.benchmark(values(lat), args.iters)
         sffd = next(r for r in result["w1"] if r["level"] == L)
         best = min(sffd["fused"]["total_events"], sffd["cublas"]["total_events"])
@@ -236,7 +243,7 @@ def main():
             b = row[path]
             st = " ".join(f"{k}={v:.4f}" for k, v in b.items()
                           if k not in ("total_events", "total_events_queued", "total_graph", "d2d_copy_ms",
-                                       "d2d_bandwidth_GBps", "floor_ms", "output_bytes"))
+                                       "d2d_bandwidth_GBps", "floor_ms", "output_bytes", "kernel"))
             cpu = row.get("cpu_ms", float("nan"))
             best = min(b["total_events"], b["total_graph"])
             fl = b["floor_ms"]

@@ -22,16 +22,17 @@ if has build; then
   rc=$?
   echo "build rc=$rc in $(( $(date +%s) - t0 )) s"; grep -E "error|warning: .*cuda" "$OUT/build.log" | head -20
   [ $rc -eq 0 ] || { tail -30 "$OUT/build.log"; exit 1; }
-  cuobjdump --dump-resource-usage /tmp/sffd-build/native/libsmoothffd_cuda.a > "$OUT/resource_usage.txt" 2>&1 || true
+  cuobjdump --dump-resource-usage python/smoothffd/libsmoothffd_cuda.so > "$OUT/resource_usage.txt" 2>&1 || true
   grep -E "Function|REG|STACK" "$OUT/resource_usage.txt" | head -30
 fi
 python3 -c "import smoothffd; print(smoothffd.cuda_status())"
 if has test; then
-  timeout ${TEST_TIMEOUT:-300} python3 -m pytest -q -x tests/test_cuda.py tests/test_render_vertices.py 2>&1 | tee "$OUT/test_cuda.log" | tail -15
+  timeout ${TEST_TIMEOUT:-300} python3 -m pytest -q -x tests/test_cuda.py tests/test_render_vertices.py tests/test_compact.py \
+    tests/test_bench_native.py 2>&1 | tee "$OUT/test_cuda.log" | tail -15
 fi
 if has sanitize; then
   SMOOTHFFD_SANITIZER=1 timeout 240 compute-sanitizer --tool memcheck --error-exitcode 9 \
-    python3 -m pytest -q -x tests/test_cuda.py -k "sanitizer_subset or upsampling" \
+    python3 -m pytest -q -x tests/test_cuda.py tests/test_bench_native.py -k "sanitizer_subset or upsampling" \
     > "$OUT/sanitizer.log" 2>&1
   echo "compute-sanitizer rc=$?"; grep -E "ERROR SUMMARY|passed|failed|Error" "$OUT/sanitizer.log" | head -10
 fi

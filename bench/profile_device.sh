@@ -9,7 +9,7 @@ OUT=${OUT:-/tmp/sffd-out}; mkdir -p "$OUT"
 STEPS=${STEPS:-"build test bench"} BENCH_ARGS=${BENCH_ARGS:-"--iters 100 --quick"} bash bench/device_run.sh 2>&1 | grep -v "^ *Function\|REG:" | tail -40
 export PATH="$PATH:/usr/local/cuda/bin" PYTHONPATH="$PWD/python"
 # Spills a function (local loads/stores in the SASS), for the k_inline instances.
-cuobjdump --dump-sass /tmp/sffd-build/native/libsmoothffd_cuda.a 2>/dev/null | awk '/Function : /{f=$3} /STL|LDL/{n[f]++} END{for (k in n) print n[k], k}' | grep k_inline | sed 's/EEEvNS_8PlanView.*//'
+cuobjdump --dump-sass python/smoothffd/libsmoothffd_cuda.so 2>/dev/null | awk '/Function : /{f=$3} /STL|LDL/{n[f]++} END{for (k in n) print n[k], k}' | grep k_inline | sed 's/EEEvNS_8PlanView.*//'
 [ "${SANITIZE:-0}" = 1 ] && bash bench/sanitize_device.sh
 [ "${SKIP_NCU:-0}" = 1 ] && exit 0
 mkdir -p /tmp/prof && cd /tmp/prof

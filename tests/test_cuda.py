@@ -5,9 +5,11 @@ lattices of several degrees, both lattice kinds, levels 1..16, meshes with sharp
 edges and knot-box clipping, on both paths (fused and cuBLAS) and in each of the inline
 kernel's modes (boxes, weights, global: chosen by the plan and the device's shared memory, so
 the tests reach them with lattices, levels and emulated smaller devices). Device buffers are
-poisoned with NaN before every run and every output element must come back finite.
+poisoned with NaN before every run (smoothffd._core._testing.poison, the private test hook)
+and every output element must come back finite.
 
-Skipped (with the reason) where no usable CUDA device exists.
+Skipped (with the reason) where no usable CUDA device exists. The timing harness and the
+paper's upsampling baseline live in bench/native (tests/test_bench_native.py).
 """
 
 import os
@@ -49,6 +51,7 @@ def need_cublas():
         pytest.skip(f"cuBLAS does not start under CUDA_FORCE_PTX_JIT=1 ({_CUBLAS['why']})")
 
 PATHS = ("fused", "cublas")
+poison = _core._testing.poison
 
 
 # ----------------------------------------------------------------------------- meshes (numpy)
@@ -134,7 +137,7 @@ def check(mesh, lat, level, path, shared_memory_limit=0):
     pc, nc, _ = _core.CpuEvaluator(plan).evaluate(vals)
     ev = _core.CudaEvaluator(plan, path, shared_memory_limit=shared_memory_limit)
     assert ev.path == path
-    ev.poison()
+    poison(ev)
     pg, ng, times = ev.evaluate(vals)
     assert pg.shape == pc.shape and ng.shape == nc.shape
     assert np.isfinite(pg).all(), f"{np.count_nonzero(~np.isfinite(pg))} positions not written"
@@ -145,11 +148,11 @@ def check(mesh, lat, level, path, shared_memory_limit=0):
     assert da <= 1e-4, f"normals differ by {da:.2e} rad"
     assert times["copy_back"] >= 0 and times["host_expand"] >= 0
     assert ("sampling" in times) != ("sample_fit_tessellate" in times)  # the reference or the inline kernel
-    ev.poison()
+    poison(ev)
     t = ev.evaluate_device(vals)
     assert t["device_total"] > 0
     # The compact layout straight from the device agrees with what the per-corner call gave.
-    ev.poison()
+    poison(ev)
     pos, rn, t = ev.evaluate_compact(vals)
     assert t["copy_back"] >= 0
     assert np.isfinite(pos).all(), f"{np.count_nonzero(~np.isfinite(pos))} positions not written"
@@ -332,56 +335,6 @@ def test_out_of_memory_is_memory_error():
     vals = np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32)
     pg, _, _ = _core.CudaEvaluator(small).evaluate(vals)
     assert np.isfinite(pg).all()
-
-
-def upsampled_points(mesh, lat, level):
-    """Flat tessellation points of a plan (rest positions) with their planes' pieces."""
-    plan = smoothffd.Deformer(mesh, lat, level=level, device="cpu").plan
-    pts = plan.rest_positions().astype(np.float64)
-    return pts, plan
-
-
-def pieces_of(lat, pts):
-    s = pts @ lat.object_to_param[:, :3].T + lat.object_to_param[:, 3]
-    planes = lat.knot_planes()
-    packed = np.zeros(len(pts), np.uint32)
-    for a in range(3):
-        idx = np.searchsorted(planes[a], s[:, a], side="right")
-        packed |= idx.astype(np.uint32) << np.uint32(10 * a)
-    return packed
-
-
-def test_upsampling_baseline_matches_lattice():
-    rng = np.random.default_rng(9)
-    mesh, lat = icosphere(2), bspline(rng)
-    pts, plan = upsampled_points(mesh, lat, 6)
-    nrm = pts / np.linalg.norm(pts, axis=1, keepdims=True)
-    base = _core.CudaUpsamplingBaseline(plan, pts.astype(np.float32), nrm.astype(np.float32),
-                                        pieces_of(lat, pts))
-    vals = np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32)
-    pos, n = base.evaluate(vals)
-    F, J = lat.evaluate(pts.astype(np.float32).astype(np.float64))
-    assert np.abs(pos - F).max() <= 1e-5 * SIZE
-    cof = np.linalg.det(J)[:, None, None] * np.linalg.inv(J).transpose(0, 2, 1)
-    ref = np.einsum("nij,nj->ni", cof, nrm)
-    ref /= np.linalg.norm(ref, axis=1, keepdims=True)
-    assert angles(n, ref).max() <= 1e-4
-    t = base.benchmark(vals, 5)
-    assert t["deform_samples"] > 0
-
-
-def test_benchmark_reports_every_measure():
-    """CudaEvaluator.benchmark's totals (host-paced events, events behind a holding kernel,
-    graph replays) and floor, which bench/bench_gpu.py reports: present and finite, and the
-    output bytes those of the compact per-frame output (positions per output vertex, normals
-    per render vertex). Their values are the benchmark's business, not this test's."""
-    rng = np.random.default_rng(3)
-    plan = smoothffd.Deformer(icosphere(2), bspline(rng), level=4, device="cpu").plan
-    vals = np.ascontiguousarray(bspline(rng).control_values().reshape(-1, 3), dtype=np.float32)
-    t = _core.CudaEvaluator(plan, "fused").benchmark(vals, 5)
-    for key in ("total_events", "total_events_queued", "total_graph", "floor_ms", "d2d_bandwidth_GBps"):
-        assert np.isfinite(t[key]) and t[key] > 0, key
-    assert t["output_bytes"] == 12 * (plan.output_vertices + plan.render_vertex_count)
 
 
 @pytest.mark.skipif(os.environ.get("SMOOTHFFD_SANITIZER") != "1", reason="run under compute-sanitizer only")

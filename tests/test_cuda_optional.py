@@ -30,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 CUDA_LIBS = re.compile(r"lib(cudart|cublas|cublasLt|cuda)\.so")
 
-# What cuda_status() may say when CUDA cannot be used (cuda_loader.cpp, cuda_evaluator.cu).
+# What cuda_status() may say when CUDA cannot be used (cuda_loader.cpp, cuda/device_status.cpp).
 REASONS = ("not installed", "failed to load", "built from other smoothffd sources", "no NVIDIA driver",
            "driver is too old", "no CUDA device", "no kernels", "cudaGetDeviceCount failed",
            "context creation failed", "CUDA initialization failed", "did not report")

@@ -430,8 +430,10 @@ PYBIND11_MODULE(_core, m) {
              return std::make_shared<CudaEvaluator>(plan, path, shared_memory_limit);
            }),
            py::arg("plan"), py::arg("path") = "", py::arg("shared_memory_limit") = 0, py::keep_alive<1, 2>(),
-           "shared_memory_limit: 0 (the device's own limits) or the shared memory (bytes, at least 48 KiB) "
-           "a block may opt in to on a smaller GPU to emulate: the launches are planned for it (tests)")
+           "path: 'fused' (or '', the default: one kernel a frame) or 'cublas' (the paper's reference, "
+           "needs the toolkit's cuBLAS); shared_memory_limit: 0 (the device's own limits) or the shared "
+           "memory (bytes, at least 48 KiB) a block may opt in to on a smaller GPU to emulate: the "
+           "launches are planned for it (tests)")
       .def_property_readonly("path", &CudaEvaluator::path, "'fused' or 'cublas' (the constructor's)")
       .def_property_readonly("output_bytes", &CudaEvaluator::output_bytes)
       .def_property_readonly("device_bytes", &CudaEvaluator::device_bytes)
@@ -491,44 +493,12 @@ PYBIND11_MODULE(_core, m) {
              }
              return times_dict(t);
            },
-           py::arg("values"), "runs the frame on the device only; returns stage times (ms, CUDA events)")
-      .def("poison", [](CudaEvaluator& ev) { ev.poison(); })
-      .def("benchmark",
-           [](CudaEvaluator& ev, Arr<float> D, int iters) {
-             const Plan& plan = ev.plan();
-             if ((size_t)D.size() != 3 * (size_t)plan.dims[0] * plan.dims[1] * plan.dims[2])
-               throw std::invalid_argument("control values: expected an (nu*nv*nw, 3) array matching the plan");
-             StageTimes t;
-             {
-               py::gil_scoped_release release;
-               t = ev.benchmark(D.data(), iters);
-             }
-             return times_dict(t);
-           },
-           py::arg("values"), py::arg("iters") = 200);
-  py::class_<CudaUpsamplingBaseline, std::shared_ptr<CudaUpsamplingBaseline>>(m, "CudaUpsamplingBaseline")
-      .def(py::init([](std::shared_ptr<Plan> plan, Arr<float> points, Arr<float> normals, Arr<uint32_t> pieces) {
-             return std::make_shared<CudaUpsamplingBaseline>(plan, to_vector(points), to_vector(normals),
-                                                             to_vector(pieces));
-           }),
-           py::arg("plan"), py::arg("points"), py::arg("normals"), py::arg("pieces"), py::keep_alive<1, 2>())
-      .def_property_readonly("points", &CudaUpsamplingBaseline::points)
-      .def_property_readonly("output_bytes", &CudaUpsamplingBaseline::output_bytes)
-      .def("evaluate",
-           [](CudaUpsamplingBaseline& b, Arr<float> D) {
-             if ((size_t)D.size() != b.control_values())
-               throw std::invalid_argument("control values: expected an (nu*nv*nw, 3) array matching the plan");
-             py::array_t<float> pos({(py::ssize_t)b.points(), (py::ssize_t)3});
-             py::array_t<float> nrm({(py::ssize_t)b.points(), (py::ssize_t)3});
-             b.evaluate(D.data(), pos.mutable_data(), nrm.mutable_data());
-             return py::make_tuple(pos, nrm);
-           },
-           py::arg("values"))
-      .def("benchmark",
-           [](CudaUpsamplingBaseline& b, Arr<float> D, int iters) {
-             if ((size_t)D.size() != b.control_values())
-               throw std::invalid_argument("control values: expected an (nu*nv*nw, 3) array matching the plan");
-             return times_dict(b.benchmark(D.data(), iters));
-           },
-           py::arg("values"), py::arg("iters") = 200);
+           py::arg("values"), "runs the frame on the device only; returns stage times (ms, CUDA events)");
+
+  // Test hooks, not for users: smoothffd._core._testing (the GPU tests use it, also against the
+  // installed wheel; it costs nothing until called).
+  py::module_ t = m.def_submodule("_testing", "test hooks of the CUDA backend (not an API)");
+  t.def("poison", [](CudaEvaluator& ev) { ev.testing_poison(); }, py::arg("evaluator"),
+        "fills the evaluator's device outputs and intermediates with NaN: a test then sees every "
+        "element a frame must write");
 }

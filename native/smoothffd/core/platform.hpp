@@ -3,7 +3,7 @@
 // a function lives in, and asking the CPU which instruction sets it runs. A Windows or macOS
 // port changes this file (docs/packaging.md says with what); the callers stay as they are.
 // Host code only: _core (cuda/cuda_loader.cpp, eval/cpu_evaluator.cpp) and the host side of
-// libsmoothffd_cuda.so (cuda/cuda_evaluator.cu).
+// libsmoothffd_cuda.so (cuda/device_status.cpp, cuda/cublas_gemm.cpp).
 #pragma once
 
 #include <dlfcn.h>

@@ -16,13 +16,9 @@
 using sffd::Plan;
 using sffd::StageTimes;
 using sffd::cuda_impl::CudaEvaluator;
-using sffd::cuda_impl::CudaUpsamplingBaseline;
 
 struct sffd_cuda_evaluator {
   std::unique_ptr<CudaEvaluator> ev;
-};
-struct sffd_cuda_baseline {
-  std::unique_ptr<CudaUpsamplingBaseline> b;
 };
 
 namespace {
@@ -124,10 +120,6 @@ int evaluate_device(sffd_cuda_evaluator* ev, const float* D, sffd_cuda_times* ti
   return guarded(err, [&] { put_times(ev->ev->evaluate_device(D), times); });
 }
 
-int benchmark(sffd_cuda_evaluator* ev, const float* D, int iters, sffd_cuda_times* times, sffd_cuda_error* err) {
-  return guarded(err, [&] { put_times(ev->ev->benchmark(D, iters), times); });
-}
-
 const char* path(const sffd_cuda_evaluator* ev) {
   try {
     return ev->ev->path() == "cublas" ? "cublas" : "fused";
@@ -145,7 +137,7 @@ void limits(const sffd_cuda_evaluator* ev, sffd_cuda_limits* out) {
   if (out) *out = ev->ev->limits();
 }
 
-int poison(sffd_cuda_evaluator* ev, sffd_cuda_error* err) {
+int testing_poison(sffd_cuda_evaluator* ev, sffd_cuda_error* err) {
   return guarded(err, [&] { ev->ev->poison(); });
 }
 
@@ -174,38 +166,6 @@ void host_free(void* ptr) {
   if (ptr) (void)cudaFreeHost(ptr);
 }
 
-int baseline_create(const void* plan, const float* points, const float* normals, const uint32_t* pieces, int64_t count,
-                    sffd_cuda_baseline** out, sffd_cuda_error* err) {
-  return guarded(err, [&] {
-    if (!out) throw std::invalid_argument("baseline_create: null output");
-    if (count < 0) throw std::invalid_argument("baseline: negative point count");
-    *out = nullptr;
-    const size_t M = (size_t)count;
-    std::vector<float> pts(points, points + 3 * M), nrm(normals, normals + 3 * M);
-    std::vector<uint32_t> pcs(pieces, pieces + M);
-    auto h = std::make_unique<sffd_cuda_baseline>();
-    h->b = std::make_unique<CudaUpsamplingBaseline>(borrowed(plan), pts, nrm, pcs);
-    *out = h.release();
-  });
-}
-
-void baseline_destroy(sffd_cuda_baseline* b) {
-  try {
-    delete b;
-  } catch (...) {
-  }
-}
-
-uint64_t baseline_control_values(const sffd_cuda_baseline* b) { return b->b->control_values(); }
-
-int baseline_evaluate(sffd_cuda_baseline* b, const float* D, float* positions, float* normals, sffd_cuda_error* err) {
-  return guarded(err, [&] { b->b->evaluate(D, positions, normals); });
-}
-
-int baseline_benchmark(sffd_cuda_baseline* b, const float* D, int iters, sffd_cuda_times* times, sffd_cuda_error* err) {
-  return guarded(err, [&] { put_times(b->b->benchmark(D, iters), times); });
-}
-
 sffd_cuda_api make_api() noexcept {
   sffd_cuda_api a{};
   a.abi_version = SFFD_CUDA_ABI_VERSION;
@@ -223,21 +183,15 @@ sffd_cuda_api make_api() noexcept {
   a.evaluator_destroy = evaluator_destroy;
   a.evaluate = evaluate;
   a.evaluate_device = evaluate_device;
-  a.benchmark = benchmark;
   a.path = path;
   a.kernel = kernel;
   a.output_bytes = output_bytes;
   a.device_bytes = device_bytes;
   a.limits = limits;
-  a.poison = poison;
   a.evaluate_compact = evaluate_compact;
   a.host_alloc = host_alloc;
   a.host_free = host_free;
-  a.baseline_create = baseline_create;
-  a.baseline_destroy = baseline_destroy;
-  a.baseline_control_values = baseline_control_values;
-  a.baseline_evaluate = baseline_evaluate;
-  a.baseline_benchmark = baseline_benchmark;
+  a.testing_poison = testing_poison;
   return a;
 }
 

@@ -12,7 +12,7 @@
  *    table's abi_version, plan_size (sizeof(sffd::Plan)) and plan_tail (offsetof its last
  *    member) are checked at load; a library built from other sources is refused;
  *  - the library keeps no pointer into caller memory beyond a call, except the plan, which the
- *    caller keeps alive as long as the evaluator or baseline made from it.
+ *    caller keeps alive as long as the evaluator made from it.
  * Bump SFFD_CUDA_ABI_VERSION on any change to this file or to sffd::Plan. */
 #ifndef SMOOTHFFD_CUDA_API_H
 #define SMOOTHFFD_CUDA_API_H
@@ -24,7 +24,7 @@
 extern "C" {
 #endif
 
-#define SFFD_CUDA_ABI_VERSION 3
+#define SFFD_CUDA_ABI_VERSION 4
 #define SFFD_CUDA_ENTRY "sffd_cuda_api_v1"
 
 /* What a failed call raises on the C++ side (cuda_loader.cpp). */
@@ -65,7 +65,6 @@ typedef struct sffd_cuda_limits {
 } sffd_cuda_limits;
 
 typedef struct sffd_cuda_evaluator sffd_cuda_evaluator; /* opaque */
-typedef struct sffd_cuda_baseline sffd_cuda_baseline;   /* opaque */
 
 typedef struct sffd_cuda_api {
   uint32_t abi_version;  /* SFFD_CUDA_ABI_VERSION */
@@ -89,7 +88,6 @@ typedef struct sffd_cuda_api {
   int (*evaluate)(sffd_cuda_evaluator* ev, const float* D, float* positions, float* corner_normals,
                   sffd_cuda_times* times, sffd_cuda_error* err);
   int (*evaluate_device)(sffd_cuda_evaluator* ev, const float* D, sffd_cuda_times* times, sffd_cuda_error* err);
-  int (*benchmark)(sffd_cuda_evaluator* ev, const float* D, int iters, sffd_cuda_times* times, sffd_cuda_error* err);
   /* Static strings. */
   const char* (*path)(const sffd_cuda_evaluator* ev);
   /* What runs a frame: "inline (boxes)", "inline (weights)", "inline (global)" or "cublas". */
@@ -97,7 +95,6 @@ typedef struct sffd_cuda_api {
   uint64_t (*output_bytes)(const sffd_cuda_evaluator* ev);
   uint64_t (*device_bytes)(const sffd_cuda_evaluator* ev);
   void (*limits)(const sffd_cuda_evaluator* ev, sffd_cuda_limits* out);
-  int (*poison)(sffd_cuda_evaluator* ev, sffd_cuda_error* err);
   /* The compact layout: positions N x 3, render-vertex normals R x 3 (null: positions only). */
   int (*evaluate_compact)(sffd_cuda_evaluator* ev, const float* D, float* positions, float* normals,
                           sffd_cuda_times* times, sffd_cuda_error* err);
@@ -106,15 +103,9 @@ typedef struct sffd_cuda_api {
   int (*host_alloc)(uint64_t bytes, void** out, sffd_cuda_error* err);
   void (*host_free)(void* ptr);
 
-  /* The upsampling baseline: points, normals M x 3, pieces M. */
-  int (*baseline_create)(const void* plan, const float* points, const float* normals, const uint32_t* pieces,
-                         int64_t count, sffd_cuda_baseline** out, sffd_cuda_error* err);
-  void (*baseline_destroy)(sffd_cuda_baseline* b);
-  uint64_t (*baseline_control_values)(const sffd_cuda_baseline* b);
-  int (*baseline_evaluate)(sffd_cuda_baseline* b, const float* D, float* positions, float* normals,
-                           sffd_cuda_error* err);
-  int (*baseline_benchmark)(sffd_cuda_baseline* b, const float* D, int iters, sffd_cuda_times* times,
-                            sffd_cuda_error* err);
+  /* Testing (smoothffd._core._testing, not for users): fills the evaluator's device outputs
+   * and intermediates with NaN, so that a test sees every element a frame must write. */
+  int (*testing_poison)(sffd_cuda_evaluator* ev, sffd_cuda_error* err);
 } sffd_cuda_api;
 
 typedef const sffd_cuda_api* (*sffd_cuda_entry_fn)(void);

@@ -1,9 +1,12 @@
-// CUDA evaluator: the plan is uploaded once, each frame uploads only the control values D
-// (for the inline kernel and up to 256 control points: inside the launch's parameters).
-// The per-element stages are the SFFD_HD functions of eval/stages.hpp, called from kernels.
+// CUDA evaluator, the host side (cuda_evaluator.cpp): the plan's tables are built
+// (device_tables.hpp) and uploaded once, each frame uploads only the control values D (for
+// the inline kernel and up to 256 control points: inside the launch's parameters) and
+// launches the kernels through their launchers (kernels.hpp). The layout is OpenSubdiv's
+// osd/cudaEvaluator.cpp + osd/cudaKernel.cu: this class, the kernels in inline_kernel.cu and
+// reference_kernels.cu, the device tables in plain C++.
 //
 // Two paths, chosen by the constructor's `path`:
-//   fused:  the default. One persistent kernel a frame, k_inline (cuda/inline_kernels.cuh), in
+//   fused:  the default. One persistent kernel a frame, k_inline (inline_kernel.cu), in
 //           which each patch evaluates its own samples, fits, adjusts its edges and
 //           tessellates, with no intermediate buffers. Its tables live in shared memory where
 //           they fit (the samples from the lattice boxes in power form, else from per-sample
@@ -33,14 +36,15 @@
 //
 // This is the implementation inside libsmoothffd_cuda.so (namespace sffd::cuda_impl), behind
 // the C boundary of cuda_api.h (cuda_api.cpp); the Python module uses the wrapper of the same
-// interface in cuda_loader.hpp, which loads the library when first asked for.
+// interface in cuda_loader.hpp, which loads the library when first asked for. bench/native
+// links the same objects for its timing harness (the hooks at the end of the class).
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <utility>
-#include <vector>
 
 #include "smoothffd/cuda/cuda_api.h"
 #include "smoothffd/cuda/cuda_error.hpp"
@@ -60,11 +64,13 @@ class CudaEvaluator : public Evaluator {
  public:
   // path: "fused" (or "", the default) or "cublas". shared_memory_limit: 0, the device's own
   // shared-memory limits; else the opt-in shared memory a block may use on a smaller device to
-  // emulate (at least 48 KiB; tests): the inline kernel's tables (boxes, weights or global) and
+  // emulate (at least 48 KiB; tests): the inline kernel's mode (boxes, weights or global) and
   // blocks an SM are chosen for it.
   explicit CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string& path = "",
                          int64_t shared_memory_limit = 0);
   ~CudaEvaluator() override;
+  CudaEvaluator(const CudaEvaluator&) = delete;
+  CudaEvaluator& operator=(const CudaEvaluator&) = delete;
   std::string name() const override { return "cuda"; }
   const Plan& plan() const override { return *plan_; }
 
@@ -73,56 +79,37 @@ class CudaEvaluator : public Evaluator {
   // positions only (the device computes everything as usual; only the normals' copy back
   // and host gather are skipped).
   StageTimes evaluate(const float* D, float* positions, float* corner_normals) override;
+  // Whole frame into the compact layout (evaluator.hpp): only the device's own output
+  // crosses the bus, straight into page-locked destinations, else overlapped with the host's
+  // copy through pinned staging. normals null: positions only.
+  StageTimes evaluate_compact(const float* D, float* positions, float* normals) override;
   // Device stages only; the result stays on the device. Times from CUDA events.
   StageTimes evaluate_device(const float* D);
 
   std::string path() const;
-  // Bytes of the compact device output of one frame: 12 (N + R).
-  size_t output_bytes() const;
-  size_t device_bytes() const;  // device memory held
   // What runs a frame: "inline (boxes)" (where the lattice boxes fit in shared memory),
   // "inline (weights)", "inline (global)" (the tables in device memory), or "cublas" (the
   // reference path). A static string.
   const char* kernel() const;
+  // Bytes of the compact device output of one frame: 12 (N + R).
+  size_t output_bytes() const;
+  size_t device_bytes() const;  // device memory held
   // The shared-memory limits the launches were planned with (cuda_api.h).
   sffd_cuda_limits limits() const;
-  // Fills the device outputs and intermediates with NaN (tests: every element must be written).
+
+  // ---- Hooks for tests and tools, not for users.
+  // Fills the device outputs and intermediates with NaN (tests: every element must be
+  // written; the C ABI's testing entry).
   void poison();
-  // Whole frame into the compact layout (evaluator.hpp): only the device's own output
-  // crosses the bus, straight into page-locked destinations, else overlapped with the host's
-  // copy through pinned staging (copy_to_host). normals null: positions only.
-  StageTimes evaluate_compact(const float* D, float* positions, float* normals) override;
-
-  // Timing on the device (median of `iters` frames with CUDA events per stage; the whole
-  // frame also as a replayed CUDA graph; the device-to-device copy floor on this run).
-  StageTimes benchmark(const float* D, int iters);
+  // The stream frames run on (a cudaStream_t), and one frame's device stages enqueued on it
+  // with no synchronisation: D (host memory) staged, then mark(name) called before each stage
+  // and mark(nullptr) after the last (where bench/native's timing harness records its events).
+  void* stream() const;
+  void enqueue_frame(const float* D, const std::function<void(const char*)>& mark);
 
  private:
   struct Impl;
   std::shared_ptr<const Plan> plan_;
-  std::unique_ptr<Impl> impl_;
-};
-
-// The paper's uniform upsampling baseline (sec. 6.4): every point of an upsampled rest mesh
-// (PN triangles at a finer level, built by the caller) is deformed by the lattice of `plan`,
-// its normal by the cofactor of the Jacobian. points: M x 3 rest points, normals: M x 3 unit
-// rest normals, pieces: M packed piece indices (10 bits an axis, as Plan::sample_piece).
-class CudaUpsamplingBaseline {
- public:
-  CudaUpsamplingBaseline(std::shared_ptr<const Plan> plan, const std::vector<float>& points,
-                         const std::vector<float>& normals, const std::vector<uint32_t>& pieces);
-  ~CudaUpsamplingBaseline();
-  int points() const { return count_; }
-  size_t output_bytes() const { return 24 * (size_t)count_; }
-  size_t control_values() const;  // floats of D: 3 nu nv nw
-  // Positions and normals (M x 3 each) to host memory.
-  void evaluate(const float* D, float* positions, float* normals);
-  StageTimes benchmark(const float* D, int iters);
-
- private:
-  struct Impl;
-  std::shared_ptr<const Plan> plan_;
-  int count_ = 0;
   std::unique_ptr<Impl> impl_;
 };
 

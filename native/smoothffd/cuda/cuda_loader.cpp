@@ -150,15 +150,7 @@ StageTimes CudaEvaluator::evaluate_device(const float* D) {
   return to_times(t);
 }
 
-StageTimes CudaEvaluator::benchmark(const float* D, int iters) {
-  sffd_cuda_error err{};
-  sffd_cuda_times t{};
-  check(api_->benchmark(handle_, D, iters, &t, &err), err);
-  return to_times(t);
-}
-
 std::string CudaEvaluator::path() const { return api_->path(handle_); }
-
 
 size_t CudaEvaluator::output_bytes() const { return (size_t)api_->output_bytes(handle_); }
 size_t CudaEvaluator::device_bytes() const { return (size_t)api_->device_bytes(handle_); }
@@ -170,48 +162,15 @@ sffd_cuda_limits CudaEvaluator::limits() const {
   return l;
 }
 
-void CudaEvaluator::poison() {
+void CudaEvaluator::testing_poison() {
   sffd_cuda_error err{};
-  check(api_->poison(handle_, &err), err);
+  check(api_->testing_poison(handle_, &err), err);
 }
 
 StageTimes CudaEvaluator::evaluate_compact(const float* D, float* positions, float* normals) {
   sffd_cuda_error err{};
   sffd_cuda_times t{};
   check(api_->evaluate_compact(handle_, D, positions, normals, &t, &err), err);
-  return to_times(t);
-}
-
-// ---------------------------------------------------------------- CudaUpsamplingBaseline
-
-CudaUpsamplingBaseline::CudaUpsamplingBaseline(std::shared_ptr<const Plan> plan, const std::vector<float>& points,
-                                               const std::vector<float>& normals,
-                                               const std::vector<uint32_t>& pieces)
-    : plan_(std::move(plan)), api_(api_or_throw()) {
-  const size_t M = pieces.size();
-  if (points.size() != 3 * M || normals.size() != 3 * M)
-    throw std::invalid_argument("baseline: points, normals (M x 3) and pieces (M) disagree");
-  sffd_cuda_error err{};
-  check(api_->baseline_create(plan_.get(), points.data(), normals.data(), pieces.data(), (int64_t)M, &handle_, &err),
-        err);
-  count_ = (int)M;
-}
-
-CudaUpsamplingBaseline::~CudaUpsamplingBaseline() {
-  if (handle_) api_->baseline_destroy(handle_);
-}
-
-size_t CudaUpsamplingBaseline::control_values() const { return (size_t)api_->baseline_control_values(handle_); }
-
-void CudaUpsamplingBaseline::evaluate(const float* D, float* positions, float* normals) {
-  sffd_cuda_error err{};
-  check(api_->baseline_evaluate(handle_, D, positions, normals, &err), err);
-}
-
-StageTimes CudaUpsamplingBaseline::benchmark(const float* D, int iters) {
-  sffd_cuda_error err{};
-  sffd_cuda_times t{};
-  check(api_->baseline_benchmark(handle_, D, iters, &t, &err), err);
   return to_times(t);
 }
 

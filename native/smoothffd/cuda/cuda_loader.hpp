@@ -1,7 +1,7 @@
 // The CUDA backend as the Python module sees it: the same C++ interface as the evaluator in
 // libsmoothffd_cuda.so (cuda_evaluator.hpp), implemented over that library's C table
 // (cuda_api.h). The library is looked for next to the module's own file and dlopened the first
-// time the backend is asked for (cuda_status(), or creating an evaluator or a baseline), so
+// time the backend is asked for (cuda_status(), or creating an evaluator), so
 // the module itself needs no CUDA library at all: without the library, the driver or a GPU,
 // everything on the CPU works and cuda_status() says why CUDA does not.
 //
@@ -55,9 +55,9 @@ class CudaEvaluator : public Evaluator {
   size_t device_bytes() const;
   std::string kernel() const;
   sffd_cuda_limits limits() const;
-  void poison();
+  // Testing (smoothffd._core._testing): the device outputs filled with NaN.
+  void testing_poison();
   StageTimes evaluate_compact(const float* D, float* positions, float* normals) override;
-  StageTimes benchmark(const float* D, int iters);
 
  private:
   std::shared_ptr<const Plan> plan_;
@@ -65,24 +65,5 @@ class CudaEvaluator : public Evaluator {
   sffd_cuda_evaluator* handle_ = nullptr;
 };
 
-class CudaUpsamplingBaseline {
- public:
-  CudaUpsamplingBaseline(std::shared_ptr<const Plan> plan, const std::vector<float>& points,
-                         const std::vector<float>& normals, const std::vector<uint32_t>& pieces);
-  ~CudaUpsamplingBaseline();
-  CudaUpsamplingBaseline(const CudaUpsamplingBaseline&) = delete;
-  CudaUpsamplingBaseline& operator=(const CudaUpsamplingBaseline&) = delete;
-  int points() const { return count_; }
-  size_t output_bytes() const { return 24 * (size_t)count_; }
-  size_t control_values() const;
-  void evaluate(const float* D, float* positions, float* normals);
-  StageTimes benchmark(const float* D, int iters);
-
- private:
-  std::shared_ptr<const Plan> plan_;
-  int count_ = 0;
-  const sffd_cuda_api* api_ = nullptr;
-  sffd_cuda_baseline* handle_ = nullptr;
-};
 
 }  // namespace sffd

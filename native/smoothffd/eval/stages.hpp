@@ -71,6 +71,20 @@ SFFD_HD void sample_point(const PlanView& pv, const float* D, int s, float* F, f
   finish_sample(pv, p, s, value, grad, F, J);
 }
 
+// sample_point with C terms an axis at compile time instead of the run-time dispatch on the
+// largest count (C at least every count and degree + 1 of the plan's pieces: the padded terms
+// are exact zeros, fma(0, d, x) = x, so the result is sample_point's). The CUDA kernels' form.
+template <int C>
+SFFD_HD void sample_point_fixed(const PlanView& pv, const float* D, int s, float* F, float* J) {
+  float p[3] = {pv.sample_position[3 * s], pv.sample_position[3 * s + 1], pv.sample_position[3 * s + 2]};
+  int idx[3][C];
+  float w[3][C], dw[3][C], value[3], grad[9];
+  sample_weights<C>(pv, p, pv.sample_piece[s], idx, w, dw);
+  tensor_eval_fixed<float, float, C, C, C>(idx[0], w[0], dw[0], idx[1], w[1], dw[1], idx[2], w[2], dw[2], D,
+                                           pv.dims[1], pv.dims[2], value, grad);
+  finish_sample(pv, p, s, value, grad, F, J);
+}
+
 // Moves control point c next to corner P: onto the tangent plane of the (averaged) normal at
 // a smooth end, onto the line through P along n0 x n1 at a sharp end (paper Fig. 4).
 SFFD_HD V3 adjust_control_point(V3 c, V3 P, V3 n0, V3 n1, bool has_n1, bool sharp) {

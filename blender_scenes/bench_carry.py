@@ -17,7 +17,8 @@ import bmesh  # noqa: E402
 import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(ROOT, "addon"))
+# The add-on and the core from the source tree (a development build: scripts/build.sh).
+sys.path[:0] = [os.path.join(ROOT, "addon"), os.path.join(ROOT, "python")]
 import smooth_ffd  # noqa: E402
 from smooth_ffd import meshio, modifier_update  # noqa: E402
 

@@ -4,6 +4,7 @@
     make-lattice (--bbox-of IN.obj | --box X0 Y0 Z0 X1 Y1 Z1) [--shape 5 5 5] [--degree 2 2 2]
                  [--twist DEG | --bend DEG | --bulge F] [--axis z] -o L.json
     info FILE.obj|FILE.json
+    quality IN.obj [--lattice L.json | --twist DEG | --bend DEG | --bulge F] [--levels 3 6]
 
 Progress goes to stderr, one line per stage with its time. Bad input (unreadable or malformed
 files, invalid arguments) exits with status 2 and a one-line message; anything else is a bug
@@ -327,6 +328,59 @@ def _describe_lattice(path):
     return lines
 
 
+def cmd_quality(args, progress):
+    """Deform a mesh at several levels and print metrics.quality for each: what real assets
+    need checked (reversed triangles, flat faces, slivers, volume)."""
+    from . import Deformer, metrics
+
+    with progress.stage("read") as note:
+        mesh = objio.read_obj_mesh(args.input)
+        note["detail"] = f"{args.input}: {mesh.vertex_count:,} vertices, {mesh.face_count:,} faces"
+    mode, amount = None, 0.0
+    for m in ("twist", "bend", "bulge"):
+        if getattr(args, m) is not None:
+            mode, amount = m, getattr(args, m)
+    if args.lattice:
+        if mode:
+            raise UserError(f"--{mode}: give either --lattice or a deformation, not both")
+        lattice = lattice_json.load_lattice(args.lattice)
+        what = args.lattice
+    else:
+        box_min, box_max = padded_box(mesh.positions, 0.05)
+        doc = make_lattice_doc(box_min, box_max, (5, 5, 5), (2, 2, 2), "bspline", mode, amount,
+                               "xyz".index(args.axis))
+        lattice = lattice_json.build_lattice(*lattice_json.parse_lattice(doc, "quality"))
+        what = f"5x5x5 quadratic B-spline, {mode + f' {amount:g}' if mode else 'identity'}"
+    rows = []
+    for level in args.levels:
+        if level < 1:
+            raise UserError(f"--levels: each level must be at least 1, got {level}")
+        with progress.stage(f"L={level}") as note:
+            d = Deformer(mesh, lattice, level=level, device=args.device)
+            res = d.deform()
+            tin = mesh.corner_vertices[d.plan.input_triangles()[0]]
+            q = metrics.quality(res, mesh, lattice, input_triangles=tin)
+            rows.append((level, q))
+            note["detail"] = f"{q.triangles:,} triangles"
+    if args.json:
+        print(json.dumps([dict(level=L, **q._asdict()) for L, q in rows], indent=2))
+        return 0
+    q0 = rows[0][1]
+    print(f"{args.input}: {mesh.face_count:,} faces, {q0.flat_faces:,} flat; lattice: {what}; "
+          f"size (bbox diagonal) {q0.size:.4g}; smallest angle of its triangulation "
+          f"{q0.input_min_angle:.3g}\u00b0"
+          + (f"; {q0.against_face} input corners with a normal against their face"
+             if q0.against_face else ""))
+    print(f"{'L':>3} {'triangles':>10} {'reversed':>9} {'degen':>6} {'tiny':>6} {'min angle':>10} "
+          f"{'max aspect':>11} {'flat dev':>9} {'volume':>10} watertight")
+    for level, q in rows:
+        vol = f"{q.volume_change:+.2e}" if q.volume_change is not None else "open"
+        print(f"{level:>3} {q.triangles:>10,} {q.reversed:>9,} {q.degenerate:>6,} {q.tiny:>6,} "
+              f"{q.min_angle:>9.3g}\u00b0 {q.max_aspect:>11.4g} {q.flat_deviation:>9.2e} "
+              f"{vol:>10} {'yes' if q.watertight else 'no'}")
+    return 0
+
+
 def cmd_info(args, progress):
     is_json = args.input.lower().endswith(".json")
     lines = _describe_lattice(args.input) if is_json else _describe_obj(args.input)
@@ -389,6 +443,23 @@ def build_parser():
     m.add_argument("--output", "-o", required=True, metavar="L.json")
     m.add_argument("--quiet", "-q", action="store_true")
     m.set_defaults(func=cmd_make_lattice)
+
+    q = sub.add_parser("quality", help="deform a mesh at several levels and report reversed "
+                                       "triangles, flat-face deviation, angles, volume")
+    q.add_argument("input", metavar="IN.obj")
+    q.add_argument("--lattice", "-l", metavar="L.json",
+                   help="the lattice (default: 5x5x5 quadratic B-spline around the mesh, identity "
+                        "or the deformation below)")
+    qhow = q.add_mutually_exclusive_group()
+    qhow.add_argument("--twist", type=float, metavar="DEG")
+    qhow.add_argument("--bend", type=float, metavar="DEG")
+    qhow.add_argument("--bulge", type=float, metavar="F")
+    q.add_argument("--axis", choices=("x", "y", "z"), default="z")
+    q.add_argument("--levels", type=int, nargs="+", default=[1, 3, 6], metavar="L")
+    q.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
+    q.add_argument("--json", action="store_true", help="print the measures as JSON")
+    q.add_argument("--quiet", "-q", action="store_true", help="no progress lines")
+    q.set_defaults(func=cmd_quality)
 
     i = sub.add_parser("info", help="describe an OBJ mesh or a lattice JSON")
     i.add_argument("input", metavar="FILE")

@@ -12,7 +12,8 @@ import numpy as np
 
 __all__ = ["ErrorStats", "EdgeReport", "geometry_error", "normal_angle_error",
            "signed_volume", "volume_error", "edge_report", "is_watertight", "radial_error",
-           "dense_reference", "reference_errors"]
+           "dense_reference", "reference_errors", "polygon_normals", "flat_faces",
+           "triangle_shapes", "Quality", "quality"]
 
 
 class ErrorStats(NamedTuple):
@@ -199,3 +200,164 @@ def reference_errors(result, lattice, closed=True):
         v_ref = signed_volume(ref_pos, result.triangles)
         out.update(volume=v, reference_volume=v_ref, volume_error=volume_error(v, v_ref))
     return out
+
+
+# ----------------------------------------------------------------------------------------
+# Output quality on real meshes (`python3 -m smoothffd quality`)
+
+
+def polygon_normals(positions, corner_vertices, face_offsets):
+    """Newell normals of polygons: (F, 3) vectors of twice each face's vector area (not
+    normalized). For a triangle, the cross product of its edges; for a non-planar polygon the
+    normal Blender and most tools give the face; the sum over any triangulation of the face."""
+    p = _vectors(positions, "positions")
+    cv = np.asarray(corner_vertices, dtype=np.int64)
+    fo = np.asarray(face_offsets, dtype=np.int64)
+    nxt = np.arange(len(cv)) + 1
+    ends = fo[1:] - 1
+    nxt[ends] = fo[:-1]  # the last corner of each face wraps to its first
+    a, b = p[cv], p[cv[nxt]]
+    terms = np.cross(a - p[cv[fo[:-1]]].repeat(np.diff(fo), axis=0),
+                     b - p[cv[fo[:-1]]].repeat(np.diff(fo), axis=0))
+    face = np.repeat(np.arange(len(fo) - 1), np.diff(fo))
+    out = np.zeros((len(fo) - 1, 3))
+    np.add.at(out, face, terms)
+    return out
+
+
+def _unit(v):
+    v = np.asarray(v, dtype=np.float64)
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return np.divide(v, n, out=np.zeros_like(v), where=n > 0)
+
+
+def _corner_normals_of(mesh):
+    """The mesh's corner normals, or the smooth area-weighted vertex normals the core
+    computes when it has none."""
+    if mesh.corner_normals is not None:
+        return _unit(mesh.corner_normals)
+    fn = polygon_normals(mesh.positions, mesh.corner_vertices, mesh.face_offsets)
+    vn = np.zeros((len(mesh.positions), 3))
+    face = np.repeat(np.arange(len(fn)), np.diff(mesh.face_offsets))
+    np.add.at(vn, mesh.corner_vertices, fn[face])
+    return _unit(vn[mesh.corner_vertices])
+
+
+def flat_faces(mesh, angle_degrees=1.0):
+    """Faces whose split normals say they are flat: every corner carries the face's own
+    (Newell) normal, within `angle_degrees` (the core's sharp angle). (F,) bool."""
+    fn = _unit(polygon_normals(mesh.positions, mesh.corner_vertices, mesh.face_offsets))
+    face = np.repeat(np.arange(len(fn)), np.diff(mesh.face_offsets))
+    cos = np.einsum("ij,ij->i", _corner_normals_of(mesh), fn[face])
+    ok = cos >= np.cos(np.radians(angle_degrees))
+    return np.logical_and.reduceat(ok, np.asarray(mesh.face_offsets[:-1], dtype=np.int64)) & \
+        (np.linalg.norm(fn, axis=1) > 0)
+
+
+def triangle_shapes(positions, triangles):
+    """Per triangle: area, smallest angle (degrees) and aspect ratio, longest edge squared
+    * sqrt(3) / (4 area) (1 for an equilateral triangle, inf for a degenerate one)."""
+    p = _vectors(positions, "positions")
+    t = _triangles(triangles, len(p))
+    a, b, c = p[t[:, 0]], p[t[:, 1]], p[t[:, 2]]
+    e = np.stack([b - a, c - b, a - c], axis=1)          # edge k: corner k -> k + 1
+    l2 = np.einsum("tki,tki->tk", e, e)
+    area = 0.5 * np.linalg.norm(np.cross(e[:, 0], -e[:, 2]), axis=1)
+    # angle at corner k between edges k (out) and k - 1 (in, reversed): atan2 is accurate
+    out_e, in_e = e, -np.roll(e, 1, axis=1)
+    cr = np.linalg.norm(np.cross(out_e, in_e), axis=2)
+    dt = np.einsum("tki,tki->tk", out_e, in_e)
+    ang = np.degrees(np.arctan2(cr, dt)).min(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        aspect = np.where(area > 0, l2.max(axis=1) * np.sqrt(3.0) / (4.0 * area), np.inf)
+    return area, ang, aspect
+
+
+class Quality(NamedTuple):
+    """Quality of a result on its input (``quality``). Lengths are relative to the input's
+    bounding-box diagonal (``size``), areas to its square.
+
+    triangles       output triangles
+    reversed        output triangles whose geometric normal points against their normal
+                    field: (b - a) x (c - a) has a negative dot product with the mean of the
+                    triangle's three corner normals
+    degenerate      output triangles of zero area
+    tiny            output triangles of area under 1e-8 (relative)
+    min_angle       smallest angle of any output triangle, degrees
+    max_aspect      largest aspect ratio (longest edge^2 sqrt(3) / (4 area); 1: equilateral)
+    flat_faces      input faces that the split normals say are flat (``flat_faces``)
+    flat_deviation  largest distance between an output vertex of a flat face and the exact
+                    FFD of its point of the flat input (the identity for ``lattice=None``)
+    volume_change   (output volume - volume of the exact FFD of the flat input) / the
+                    latter, None for an output that is not closed
+    against_face    input corners whose normal points away from their face (n . face
+                    normal <= 0): triangles there cannot agree with both
+    watertight      the output's edge report says closed, manifold, consistently oriented
+    size            the input's bounding-box diagonal
+    input_min_angle smallest angle of the input's own triangulation (``input_triangles``),
+                    degrees, None when not given: what the output cannot beat
+    """
+
+    triangles: int
+    reversed: int
+    degenerate: int
+    tiny: int
+    min_angle: float
+    max_aspect: float
+    flat_faces: int
+    flat_deviation: float
+    volume_change: object
+    against_face: int
+    watertight: bool
+    size: float
+    input_min_angle: object = None
+
+
+def quality(result, mesh, lattice=None, flat_angle_degrees=1.0, input_triangles=None):
+    """Measure a ``smoothffd.Result`` of ``mesh`` for the defects real assets show
+    (docs/results.md, "Real meshes"): reversed and degenerate triangles, the smallest angle
+    and the largest aspect ratio, how far flat faces move from the exact FFD of their flat
+    input, and the volume change. lattice: the deformation used (anything with
+    ``evaluate``); None means the identity. input_triangles: (Tin, 3) vertex indices of the
+    core's triangulation of the input (``Deformer.plan.input_triangles``), for its smallest
+    angle. -> Quality."""
+    if getattr(result, "corner_normals", None) is None:
+        raise ValueError("result: has no corner_normals (deformed with normals=False); "
+                         "quality measures triangles against their normals")
+    pos = np.asarray(result.positions, dtype=np.float64)
+    tri = _triangles(result.triangles, len(pos))
+    inp = np.asarray(mesh.positions, dtype=np.float64)
+    size = float(np.linalg.norm(inp.max(axis=0) - inp.min(axis=0))) if len(inp) else 0.0
+    size = size if size > 0 else 1.0
+    a, b, c = pos[tri[:, 0]], pos[tri[:, 1]], pos[tri[:, 2]]
+    geo = np.cross(b - a, c - a)
+    cn = np.asarray(result.corner_normals, dtype=np.float64).sum(axis=1)
+    reversed_ = int((np.einsum("ij,ij->i", geo, cn) < 0).sum())
+    area, ang, aspect = triangle_shapes(pos, tri)
+    flat = flat_faces(mesh, flat_angle_degrees)
+    fi = np.asarray(result.face_index, dtype=np.int64)
+    on_flat = np.unique(tri[flat[fi]])
+    dev = 0.0
+    if len(on_flat):
+        rest = np.asarray(result.rest_positions, dtype=np.float64)[on_flat]
+        ref = rest if lattice is None else np.asarray(lattice.evaluate(rest)[0], dtype=np.float64)
+        dev = float(np.linalg.norm(pos[on_flat] - ref, axis=1).max()) / size
+    report = edge_report(tri)
+    vol = None
+    if report.watertight:
+        rest = np.asarray(result.rest_positions, dtype=np.float64)
+        ref = rest if lattice is None else np.asarray(lattice.evaluate(rest)[0], dtype=np.float64)
+        v_ref = signed_volume(ref, tri)
+        if v_ref != 0:
+            vol = (signed_volume(pos, tri) - v_ref) / abs(v_ref)
+    fn = _unit(polygon_normals(mesh.positions, mesh.corner_vertices, mesh.face_offsets))
+    face = np.repeat(np.arange(len(fn)), np.diff(mesh.face_offsets))
+    against = int((np.einsum("ij,ij->i", _corner_normals_of(mesh), fn[face]) <= 0).sum())
+    return Quality(triangles=len(tri), reversed=reversed_, degenerate=int((area == 0).sum()),
+                   tiny=int((area < 1e-8 * size * size).sum()),
+                   min_angle=float(ang.min()) if len(ang) else 0.0,
+                   max_aspect=float(aspect.max()) if len(aspect) else 0.0,
+                   flat_faces=int(flat.sum()), flat_deviation=dev, volume_change=vol,
+                   against_face=against, watertight=report.watertight, size=size,
+                   input_min_angle=None if input_triangles is None or not len(input_triangles)
+                   else float(triangle_shapes(inp, input_triangles)[1].min()))

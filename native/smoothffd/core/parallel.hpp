@@ -1,7 +1,7 @@
 // Static-chunked parallel loop over [0, n) with plain std::threads.
 //
 // Every element is computed independently from the same inputs, so results are bitwise
-// identical for any thread count (tests/test_determinism.py), and for any number of threads
+// identical for any thread count (tests/test_deform_basics.py), and for any number of threads
 // the system actually grants: a refused thread's chunk runs in the calling thread.
 #pragma once
 

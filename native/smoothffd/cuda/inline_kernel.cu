@@ -42,27 +42,18 @@ namespace {
 
 constexpr int kPatchChunks = sizeof(InlinePatch) / 16;
 
-// edge_control_points (stages.hpp) of patch edge k (ends a, b at corners ka, kb) from the
-// patch's record: the same operations in the same order, so both patches of an edge still
-// compute bitwise the same control points.
+// edge_control_points (stages.hpp) of patch edge k (ends a, b at corners ka, kb) with the
+// rest adjustment normals from the patch's record: both patches of an edge run the same
+// function on the same operands, so they compute bitwise the same control points.
 __device__ __forceinline__ void edge_control_points_rec(const InlinePatch& r, int k, int ka, int kb, V3 Pa, V3 Pb,
                                                         V3 Q1, V3 Q2, const float* Ja, const float* Jb, V3 c[2]) {
-  const float s6 = 1.0f / 6.0f;
-  c[0] = s6 * (-5.0f * Pa + 18.0f * Q1 - 9.0f * Q2 + 2.0f * Pb);
-  c[1] = s6 * (2.0f * Pa - 9.0f * Q1 + 18.0f * Q2 - 5.0f * Pb);
   const uint32_t ef = (r.flags >> (12 + 4 * k)) & 15u;
-  if (ef & 4u) return;  // non-manifold: left as fitted
-  const bool has1 = (ef & 8u) != 0, self1 = ((r.flags >> (24 + k)) & 1u) != 0;
-  for (int end = 0; end < 2; ++end) {
-    const float* J = end ? Jb : Ja;
-    const V3 own = load3(r.adjust + 3 * (end ? kb : ka)), across = load3(r.nb[k] + 3 * end);
-    const V3 m0 = self1 ? across : own, m1 = self1 ? own : across;  // sides 0 and 1
-    const V3 n0 = normalized_or(cofactor_apply(J, m0), m0);
-    const V3 n1 = has1 ? normalized_or(cofactor_apply(J, m1), m1) : n0;
-    c[end] = adjust_control_point(c[end], end ? Pb : Pa, n0, n1, has1, (ef >> end) & 1u);
-  }
+  const bool self1 = ((r.flags >> (24 + k)) & 1u) != 0;  // this patch is the edge's side 1
+  auto rest = [&](int end, int side) {
+    return (side == 1) == self1 ? load3(r.adjust + 3 * (end ? kb : ka)) : load3(r.nb[k] + 3 * end);
+  };
+  edge_control_points(Pa, Pb, Q1, Q2, Ja, Jb, ef & 3u, (ef & 4u) != 0, (ef & 8u) != 0, rest, c);
 }
-
 
 // One kernel a frame, persistent: each block stages the lattice tables once (MODE: where they
 // live, InlineMode), then takes groups of PB patches (group, group + gridDim.x, ...). LANES
@@ -213,10 +204,8 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
         const float4 col = ld(cl.bary);
         const V3 x = v3(F[0], F[1], F[2]);
         // deformed_column_normal (stages.hpp) with the column's point from the column table.
-        const float* rn = rec.rest;
-        const V3 rn0 = load3(rn);
-        const V3 n0 = col.x * rn0 + col.y * load3(rn + 3) + col.z * load3(rn + 6);
-        const V3 n = normalized_or(normalized_or(cofactor_apply(J, n0), n0), rn0);
+        const V3 rn[3] = {load3(rec.rest), load3(rec.rest + 3), load3(rec.rest + 6)};
+        const V3 n = deformed_normal_at(col.x, col.y, col.z, rn, J);
         int con = k - K0;
         if (k < K0) {
           gc += col.w * x;
@@ -299,11 +288,11 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
         adjusted += b[edge_control_index(k, false)] + b[edge_control_index(k, true)];
         if ((mine >> k) & 1) store3(fv.positions + 3 * (long long)rec.vertex[k], b[k]);
       }
-      b[kCentre] = load3(geo[lp][0]) + 0.25f * (adjusted - load3(geo[lp][1]));
+      b[kCentre] = moved_centre(load3(geo[lp][0]), load3(geo[lp][1]), adjusted);
       cubic_power_form(b, a);
       store_field(ctrl[lp][0], a);
       // The fallback normal from the corners' sum (lanes 0-2), before the barrier below.
-      store3(ctrl[lp].fallback, normalized_or(load3(ctrl[lp].fallback), v3(0, 0, 1)));
+      store3(ctrl[lp].fallback, patch_normal_fallback(load3(ctrl[lp].fallback)));
     }
     if (SHARED) __pipeline_wait_prior(0);  // the boundary list
     __syncthreads();

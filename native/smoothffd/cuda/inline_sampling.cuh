@@ -40,43 +40,39 @@ __device__ __forceinline__ void piece_offsets(const InlinePieceWide& pc, int o[C
   for (int k = 0; k < C; ++k) o[k] = pc.off[k];
 }
 
-// F = p + w value and J = I + w (dF/dt) A', A' = the pieces' maps (rows m[a] = dt_a/dp):
-// compose_deformation (lattice/tensor_eval.hpp) with the derivatives in the pieces' own t.
-__device__ __forceinline__ void compose_inline(float4 pw, const float m[3][3], const float val[3], const float gu[3],
-                                               const float gv[3], const float gw[3], float F[3], float J[9]) {
+// F = p + w value and J = I + w (dF/dt) A' (compose_deformation, lattice/tensor_eval.hpp)
+// with the derivatives in the pieces' own t and A' = the pieces' maps (rows m[a] = dt_a/dp).
+__device__ __forceinline__ void compose_inline(float4 pw, const float m[3][3], const float val[3], const float grad[9],
+                                               float F[3], float J[9]) {
   const float p[3] = {pw.x, pw.y, pw.z};
-#pragma unroll
-  for (int r = 0; r < 3; ++r) {
-    F[r] = p[r] + pw.w * val[r];
-#pragma unroll
-    for (int c = 0; c < 3; ++c) {
-      const float g = gu[r] * m[0][c] + gv[r] * m[1][c] + gw[r] * m[2][c];
-      J[3 * r + c] = (r == c ? 1.0f : 0.0f) + pw.w * g;
-    }
-  }
+  compose_deformation<float>(p, pw.w, val, grad, &m[0][0], F, J);
 }
 
-// Where sample_inline reads the control values: a point offset o (InlinePiece::off) gives
-// its three coordinates. SharedControls: the block's float4 copy in shared memory (the
-// weights mode); GlobalControls: the frame's upload, 3 floats a point (the global mode).
+// Where sample_inline reads the control values (tensor_contract's reader, lattice/
+// tensor_eval.hpp): point offset o (InlinePiece::off) gives its three coordinates.
+// SharedControls: the block's float4 copy in shared memory (the weights mode);
+// GlobalControls: the frame's upload, 3 floats a point, through the read-only cache (the
+// global mode).
 struct SharedControls {
   const float4* v;
-  __device__ __forceinline__ V3 operator()(int o) const {
+  __device__ __forceinline__ void operator()(int o, float d[3]) const {
     const float4 q = v[o];
-    return v3(q.x, q.y, q.z);
+    d[0] = q.x, d[1] = q.y, d[2] = q.z;
   }
 };
 struct GlobalControls {
   const float* __restrict__ v;
-  __device__ __forceinline__ V3 operator()(int o) const {
+  __device__ __forceinline__ void operator()(int o, float d[3]) const {
     const float* q = v + 3 * (long long)o;
-    return v3(__ldg(q), __ldg(q + 1), __ldg(q + 2));
+    d[0] = __ldg(q), d[1] = __ldg(q + 1), d[2] = __ldg(q + 2);
   }
 };
 
 // F and J at one sample from the inline tables: sample_point (stages.hpp) with the axis
-// pieces in power form, t from the folded map, the tensor contraction of tensor_eval_fixed in
-// the same order, and J = I + w (dF/dt) A' with A' = the pieces' maps (dt/dp). piece: the
+// pieces in power form and t from the folded map (one affine map a piece instead of the
+// lattice's map, the origin and the scale), the per-axis Horner scheme (horner) and the
+// contraction (tensor_contract) of lattice/tensor_eval.hpp with the kernel's reader of the
+// control values, and J = I + w (dF/dt) A' with A' = the pieces' maps (dt/dp). piece: the
 // sample's piece of each axis (indices into pcs).
 template <int C, class Piece, class Controls>
 __device__ __forceinline__ void sample_inline(const Controls& D, const Piece* __restrict__ pcs, float4 pw,
@@ -87,59 +83,19 @@ __device__ __forceinline__ void sample_inline(const Controls& D, const Piece* __
   for (int a = 0; a < 3; ++a) {
     const Piece& pc = pcs[piece[a]];
     const float4 mp = ld(pc.map);
-    int oo[C];
-    piece_offsets<C>(pc, oo);
+    piece_offsets<C>(pc, off[a]);
     m[a][0] = mp.x, m[a][1] = mp.y, m[a][2] = mp.z;
     const float t = fmaf(mp.x, pw.x, fmaf(mp.y, pw.y, fmaf(mp.z, pw.z, mp.w)));
 #pragma unroll
     for (int k = 0; k < C; ++k) {
       float c[C];
       piece_coefficients<C>(pc, k, c);
-      float v = c[C - 1], d = 0.0f;
-#pragma unroll
-      for (int q = C - 2; q >= 0; --q) {
-        d = fmaf(d, t, v);
-        v = fmaf(v, t, c[q]);
-      }
-      w[a][k] = v;
-      dw[a][k] = d;
-      off[a][k] = oo[k];
+      horner<C>([&](int q) { return c[q]; }, C - 1, t, w[a][k], dw[a][k]);
     }
   }
-  float val[3] = {0, 0, 0}, gu[3] = {0, 0, 0}, gv[3] = {0, 0, 0}, gw[3] = {0, 0, 0};
-#pragma unroll
-  for (int a = 0; a < C; ++a) {
-    float av[3] = {0, 0, 0}, avd[3] = {0, 0, 0}, awd[3] = {0, 0, 0};
-#pragma unroll
-    for (int b = 0; b < C; ++b) {
-      const int row = off[0][a] + off[1][b];
-      float bw[3] = {0, 0, 0}, bwd[3] = {0, 0, 0};
-#pragma unroll
-      for (int c = 0; c < C; ++c) {
-        const V3 d4 = D(row + off[2][c]);
-        const float d[3] = {d4.x, d4.y, d4.z};
-#pragma unroll
-        for (int r = 0; r < 3; ++r) {
-          bw[r] += w[2][c] * d[r];
-          bwd[r] += dw[2][c] * d[r];
-        }
-      }
-#pragma unroll
-      for (int r = 0; r < 3; ++r) {
-        av[r] += w[1][b] * bw[r];
-        avd[r] += dw[1][b] * bw[r];
-        awd[r] += w[1][b] * bwd[r];
-      }
-    }
-#pragma unroll
-    for (int r = 0; r < 3; ++r) {
-      val[r] += w[0][a] * av[r];
-      gu[r] += dw[0][a] * av[r];
-      gv[r] += w[0][a] * avd[r];
-      gw[r] += w[0][a] * awd[r];
-    }
-  }
-  compose_inline(pw, m, val, gu, gv, gw, F, J);
+  float val[3], grad[9];
+  tensor_contract<float, float, C, C, C>(off[0], w[0], dw[0], off[1], w[1], dw[1], off[2], w[2], dw[2], D, val, grad);
+  compose_inline(pw, m, val, grad, F, J);
 }
 
 // The lattice boxes of box_list (`boxes` of them) in power form: the C^3 coefficient vectors
@@ -267,7 +223,8 @@ __device__ __forceinline__ void sample_box(const float4* __restrict__ boxes, con
   }
   float val[3], gu[3], gv[3], gw[3];
   eval_box<C>(boxes + (size_t)box.y * (C * C * C), t[0], t[1], t[2], val, gu, gv, gw);
-  compose_inline(pw, m, val, gu, gv, gw, F, J);
+  const float grad[9] = {gu[0], gv[0], gw[0], gu[1], gv[1], gw[1], gu[2], gv[2], gw[2]};
+  compose_inline(pw, m, val, grad, F, J);
 }
 
 }  // namespace cuda_impl

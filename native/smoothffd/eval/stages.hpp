@@ -1,9 +1,11 @@
-// The per-frame stages of smooth FFD, one function per element, shared verbatim by the CPU
-// evaluator (loops) and the CUDA evaluator (one thread per element):
+// The per-frame stages of smooth FFD, one function per element, shared by the CPU evaluator
+// (loops) and the CUDA kernels (one thread per element; the inline kernel calls the pieces
+// with its own data access: docs/algorithm.md lists where each stage lives):
 //   1. sample_point      (sec. 5.1)  F and its Jacobian at one sample point
 //   2. adjust_edge       (sec. 4.2)  fitted edge control points, moved to the tangent plane
 //                                     (smooth end) or the crease line (sharp end)
-//   3. fit_patch         (Eqs. 11-13, 4.2)  geometry + normal patch of one sub-triangle
+//   3. fit_column, finish_patch (Eqs. 11-13, 4.2)  geometry + normal patch of one
+//                                     sub-triangle (fit_patch_into: the whole fit of one patch)
 //   4. tessellate_*      (Eq. 14)    output positions and normals
 #pragma once
 
@@ -20,29 +22,22 @@ SFFD_ISA_BEGIN
 // arrays stay in registers; a loop over the run-time term count would put them in local
 // memory). Terms beyond a piece's count get weight 0: its coefficients are 0 there, and the
 // evaluators only use C >= every count of the plan. Returns the largest count of the three.
-// `pieces` replaces pv.pieces when given (the CUDA kernels pass a copy in shared memory).
 // T = float, or Lanes (eval/lanes.hpp) for several samples of one lattice box at once.
 template <int C, class T = float>
 SFFD_HD int sample_weights(const PlanView& pv, const T p[3], uint32_t packed, int idx[3][C],
-                           T w[3][C], T dw[3][C], const AxisPieceF* pieces = nullptr) {
-  const AxisPieceF* pcs = pieces ? pieces : pv.pieces;
+                           T w[3][C], T dw[3][C]) {
   int count = 0;
 SFFD_UNROLL
   for (int a = 0; a < 3; ++a) {
-    const AxisPieceF& pc = pcs[pv.axis_offset[a] + ((packed >> (10 * a)) & 1023u)];
+    const AxisPieceF& pc = pv.pieces[pv.axis_offset[a] + ((packed >> (10 * a)) & 1023u)];
     const float* m = pv.param_map + 4 * a;
     T t = ((m[0] * p[0] + m[1] * p[1] + m[2] * p[2] + m[3]) - pc.origin) * pc.inv_scale;
     if (pc.degree == 0) t = 0.0f;
     count = pc.count > count ? pc.count : count;
 SFFD_UNROLL
     for (int k = 0; k < C; ++k) {
-      T v = 0.0f, d = 0.0f;
-SFFD_UNROLL
-      for (int q = C - 1; q >= 0; --q) {
-        if (q > pc.degree) continue;
-        d = d * t + v;
-        v = v * t + pc.coef[k][q];
-      }
+      T v, d;
+      horner<C>([&](int q) { return pc.coef[k][q]; }, pc.degree, t, v, d);
       idx[a][k] = pc.index[k];
       w[a][k] = v;
       dw[a][k] = d * pc.inv_scale;
@@ -99,30 +94,44 @@ SFFD_HD V3 adjust_control_point(V3 c, V3 P, V3 n0, V3 n1, bool has_n1, bool shar
   return c - dot(c - P, n) * n;
 }
 
-// Deformed adjustment normal of patch p at corner slot k (Eq. 3).
-SFFD_HD V3 deformed_adjust_normal(const PlanView& pv, const float* J, int p, int k) {
-  V3 n = load3(pv.patch_adjust_normal + 9 * (long long)p + 3 * k);
-  return normalized_or(cofactor_apply(J, n), n);
-}
-
-// 2. Edge control points of edge e from its end samples Pa, Pb (Jacobians Ja, Jb) and the two
-// constraint samples Q1, Q2 (cubic interpolation at 0, 1/3, 2/3, 1), then adjusted at both
-// ends: c[0] next to a, c[1] next to b. Once per edge, so both patches on it share the result.
-SFFD_HD void edge_control_points(const PlanView& pv, int e, V3 Pa, V3 Pb, V3 Q1, V3 Q2, const float* Ja,
-                                 const float* Jb, V3 c[2]) {
+// 2. Edge control points of an edge from its end samples Pa, Pb (Jacobians Ja, Jb) and the
+// two constraint samples Q1, Q2 (cubic interpolation at 0, 1/3, 2/3, 1), then adjusted at both
+// ends: c[0] next to a, c[1] next to b. sharp: bit 0 sharp at a, bit 1 at b; has1: a second
+// patch (side 1); rest(end, side): the rest adjustment normal of side `side`'s patch at that
+// end (the plan's tables for adjust_edge, the patch record for the CUDA inline kernel, whose
+// two patches of an edge so compute bitwise the same points). Non-manifold edges keep the
+// fitted points.
+template <class RestNormal>
+SFFD_HD void edge_control_points(V3 Pa, V3 Pb, V3 Q1, V3 Q2, const float* Ja, const float* Jb, unsigned sharp,
+                                 bool non_manifold, bool has1, const RestNormal& rest, V3 c[2]) {
   const float s6 = 1.0f / 6.0f;
   c[0] = s6 * (-5.0f * Pa + 18.0f * Q1 - 9.0f * Q2 + 2.0f * Pb);
   c[1] = s6 * (2.0f * Pa - 9.0f * Q1 + 18.0f * Q2 - 5.0f * Pb);
-  uint8_t flags = pv.edge_flags[e];
-  if (!(flags & kNonManifold)) {
-    int p0 = pv.edge_patch[2 * e], p1 = pv.edge_patch[2 * e + 1];
-    for (int end = 0; end < 2; ++end) {
-      const float* J = end ? Jb : Ja;
-      V3 n0 = deformed_adjust_normal(pv, J, p0, pv.edge_slot[4 * e + end]);
-      V3 n1 = p1 >= 0 ? deformed_adjust_normal(pv, J, p1, pv.edge_slot[4 * e + 2 + end]) : n0;
-      c[end] = adjust_control_point(c[end], end ? Pb : Pa, n0, n1, p1 >= 0, (flags >> end) & 1);
+  if (non_manifold) return;
+  for (int end = 0; end < 2; ++end) {
+    const float* J = end ? Jb : Ja;
+    const V3 m0 = rest(end, 0);
+    const V3 n0 = normalized_or(cofactor_apply(J, m0), m0);
+    V3 n1 = n0;
+    if (has1) {
+      const V3 m1 = rest(end, 1);
+      n1 = normalized_or(cofactor_apply(J, m1), m1);
     }
+    c[end] = adjust_control_point(c[end], end ? Pb : Pa, n0, n1, has1, (sharp >> end) & 1u);
   }
+}
+
+// edge_control_points of edge e from the plan's edge tables (once per edge, so both patches
+// on it share the result).
+SFFD_HD void edge_control_points(const PlanView& pv, int e, V3 Pa, V3 Pb, V3 Q1, V3 Q2, const float* Ja,
+                                 const float* Jb, V3 c[2]) {
+  const uint8_t flags = pv.edge_flags[e];
+  const int p0 = pv.edge_patch[2 * e], p1 = pv.edge_patch[2 * e + 1];
+  auto rest = [&](int end, int side) {
+    return load3(pv.patch_adjust_normal + 9 * (long long)(side ? p1 : p0) + 3 * pv.edge_slot[4 * e + 2 * side + end]);
+  };
+  edge_control_points(Pa, Pb, Q1, Q2, Ja, Jb, flags & (kSharpAtA | kSharpAtB), (flags & kNonManifold) != 0, p1 >= 0,
+                      rest, c);
 }
 
 // adjust_edge from the frame's sample buffers.
@@ -141,17 +150,27 @@ SFFD_HD void adjust_edge(const PlanView& pv, const FrameView& fv, int e) {
 // 3. Constrained fit of the geometry and normal patches of patch p together (Eq. 13), then
 // the adjusted edge control points replace the fitted ones and the centre moves with them.
 //
+// Deformed, interpolated render normal at barycentric point (b0, b1, b2) from the sample's
+// Jacobian J: the patch's rest corner normals rn interpolated there, cofactor-deformed (Eq. 3).
+SFFD_HD V3 deformed_normal_at(float b0, float b1, float b2, const V3 rn[3], const float* J) {
+  V3 n0 = b0 * rn[0] + b1 * rn[1] + b2 * rn[2];
+  V3 n = normalized_or(cofactor_apply(J, n0), n0);
+  return normalized_or(n, rn[0]);
+}
+
+// deformed_normal_at column k's point.
+SFFD_HD V3 deformed_column_normal(const PlanView& pv, int k, const V3 rn[3], const float* J) {
+  const float* b = pv.column_bary + 3 * k;
+  return deformed_normal_at(b[0], b[1], b[2], rn, J);
+}
+
 // The paper leaves the centre b111 where the fit put it. We move it by 3/2 of the mean motion
 // of the six edge control points: PN triangles' b111 = E + (E - V)/2 written as an update, so
 // a rest-pose patch with exact normals reproduces the PN centre (a rest-pose icosphere comes
-// out far closer to its sphere than with the fitted centre; see tests/test_sphere.py).
-// Deformed, interpolated render normal of column k from the sample's Jacobian J: the patch's
-// rest corner normals rn interpolated at the column's barycentric point, cofactor-deformed.
-SFFD_HD V3 deformed_column_normal(const PlanView& pv, int k, const V3 rn[3], const float* J) {
-  const float* b = pv.column_bary + 3 * k;
-  V3 n0 = b[0] * rn[0] + b[1] * rn[1] + b[2] * rn[2];
-  V3 n = normalized_or(cofactor_apply(J, n0), n0);
-  return normalized_or(n, rn[0]);
+// out far closer to its sphere than with the fitted centre; tests/test_sphere_and_sharp.py).
+// fitted, adjusted: the sums of the six edge control points before and after the adjustment.
+SFFD_HD V3 moved_centre(V3 centre, V3 fitted, V3 adjusted) {
+  return centre + 0.25f * (adjusted - fitted);  // 3/2 * (mean of 6 differences)
 }
 
 // One column k of patch p: the deformed sample x and its deformed, interpolated render normal n.
@@ -174,7 +193,7 @@ SFFD_HD void finish_patch_from(const V3 corner[3], const V3 edge_cp[3][2], V3 g[
     g[i1] = edge_cp[k][1];
     adjusted_mean += g[i0] + g[i1];
   }
-  g[kCentre] += 0.25f * (adjusted_mean - fitted_mean);  // 3/2 * (mean of 6 differences)
+  g[kCentre] = moved_centre(g[kCentre], fitted_mean, adjusted_mean);
 }
 
 // finish_patch_from with the corners and edge control points from the frame's buffers.
@@ -191,7 +210,9 @@ SFFD_HD void finish_patch(const PlanView& pv, const FrameView& fv, int p, V3 g[1
   finish_patch_from(corner, cp, g);
 }
 
-// fit_patch writing the 10 + 10 control points to out_g and out_n (30 floats each).
+// The whole fit of patch p: fit_column over its columns, the product with M_r, finish_patch;
+// the 10 + 10 control points to out_g and out_n (30 floats each). The evaluators split it for
+// speed (cpu_fitting.cpp, the CUDA kernels); tests hold their fits to this one.
 SFFD_HD void fit_patch_into(const PlanView& pv, const FrameView& fv, int p, float* out_g, float* out_n) {
   const int K = pv.columns;
   V3 rn[3];
@@ -218,10 +239,6 @@ SFFD_HD void fit_patch_into(const PlanView& pv, const FrameView& fv, int p, floa
   }
 }
 
-SFFD_HD void fit_patch(const PlanView& pv, const FrameView& fv, int p) {
-  fit_patch_into(pv, fv, p, fv.patch_control + 30 * (long long)p, fv.patch_normal + 30 * (long long)p);
-}
-
 // Cubic patch with control points cp (10 x 3) at the grid point with basis B (10 values).
 SFFD_HD V3 eval_cubic(const float* B, const float* cp) {
   V3 x = v3(0, 0, 0);
@@ -229,10 +246,12 @@ SFFD_HD V3 eval_cubic(const float* B, const float* cp) {
   return x;
 }
 
+// unit_patch_normal's fallback direction from the sum of the normal patch's corner points.
+SFFD_HD V3 patch_normal_fallback(V3 corner_sum) { return normalized_or(corner_sum, v3(0, 0, 1)); }
+
 // Unit normal from the normal patch value n (fallback: the mean of the corner normals).
 SFFD_HD V3 unit_patch_normal(V3 n, const float* cp) {
-  V3 fallback = normalized_or(load3(cp) + load3(cp + 3) + load3(cp + 6), v3(0, 0, 1));
-  return normalized_or(n, fallback);
+  return normalized_or(n, patch_normal_fallback(load3(cp) + load3(cp + 3) + load3(cp + 6)));
 }
 
 // 4a. Output vertex o: input and clip vertices are the deformed samples themselves; edge and

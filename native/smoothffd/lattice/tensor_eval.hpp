@@ -10,23 +10,39 @@ namespace sffd {
 
 SFFD_ISA_BEGIN
 
+// Control values as the contraction reads them: D is (nu, nv, nw, 3) C-order, a term's offset
+// is its control point's index along the axis times the axis's stride (nv nw, nw, 1), and
+// D(o, d) gives point o's three values. The CUDA inline kernel passes its own readers (the
+// values staged in shared memory, or read through the cache), the same contraction.
+template <class TD>
+struct PackedControls {
+  const TD* D;
+  SFFD_HD void operator()(int o, TD d[3]) const {
+    const TD* q = D + 3 * (long long)o;
+    d[0] = q[0];
+    d[1] = q[1];
+    d[2] = q[2];
+  }
+};
+
 // Factored contraction with term counts known at compile time: contract w first, then v,
 // then u (about 40% fewer multiply-adds than the plain triple loop, and fully unrolled).
-template <class T, class TD, int CU, int CV, int CW>
-SFFD_HD void tensor_eval_fixed(const int* iu, const T* wu, const T* du, const int* iv,
-                               const T* wv, const T* dv, const int* iw, const T* ww,
-                               const T* dw, const TD* D, int nv, int nw, T value[3], T grad[9]) {
+// ou, ov, ow: the terms' offsets (PackedControls); D: the controls' reader.
+template <class T, class TD, int CU, int CV, int CW, class Controls>
+SFFD_HD void tensor_contract(const int* ou, const T* wu, const T* du, const int* ov, const T* wv, const T* dv,
+                             const int* ow, const T* ww, const T* dw, const Controls& D, T value[3], T grad[9]) {
   T val[3] = {0, 0, 0}, gu[3] = {0, 0, 0}, gv[3] = {0, 0, 0}, gw[3] = {0, 0, 0};
 SFFD_UNROLL
   for (int a = 0; a < CU; ++a) {
     T av[3] = {0, 0, 0}, avd[3] = {0, 0, 0}, awd[3] = {0, 0, 0};  // over b: value, d/dv, d/dw
 SFFD_UNROLL
     for (int b = 0; b < CV; ++b) {
-      const TD* row = D + 3 * ((long long)(iu[a] * nv + iv[b]) * nw);
+      const int row = ou[a] + ov[b];
       T bw[3] = {0, 0, 0}, bwd[3] = {0, 0, 0};  // over c: value, d/dw
 SFFD_UNROLL
       for (int c = 0; c < CW; ++c) {
-        const TD* d = row + 3 * iw[c];
+        TD d[3];
+        D(row + ow[c], d);
 SFFD_UNROLL
         for (int r = 0; r < 3; ++r) {
           bw[r] += ww[c] * (T)d[r];
@@ -53,6 +69,38 @@ SFFD_UNROLL
     grad[3 * r] = gu[r];
     grad[3 * r + 1] = gv[r];
     grad[3 * r + 2] = gw[r];
+  }
+}
+
+// tensor_contract over D (nu, nv, nw, 3) from the terms' control indices iu, iv, iw.
+template <class T, class TD, int CU, int CV, int CW>
+SFFD_HD void tensor_eval_fixed(const int* iu, const T* wu, const T* du, const int* iv,
+                               const T* wv, const T* dv, const int* iw, const T* ww,
+                               const T* dw, const TD* D, int nv, int nw, T value[3], T grad[9]) {
+  int ou[CU], ov[CV];
+SFFD_UNROLL
+  for (int a = 0; a < CU; ++a) ou[a] = iu[a] * nv * nw;
+SFFD_UNROLL
+  for (int b = 0; b < CV; ++b) ov[b] = iv[b] * nw;
+  tensor_contract<T, TD, CU, CV, CW>(ou, wu, du, ov, wv, dv, iw, ww, dw, PackedControls<TD>{D}, value, grad);
+}
+
+// Value v and derivative d in t of one term's polynomial sum_q c(q) t^q, q = 0 .. top (its
+// degree; N > top at compile time): Horner from the highest power. Every evaluator's per-axis
+// weights (sample_weights, the CUDA inline kernel).
+template <int N, class T, class Coef>
+SFFD_HD void horner(const Coef& c, int top, T t, T& v, T& d) {
+  v = T(0.0f);
+  d = T(0.0f);
+SFFD_UNROLL
+  for (int q = N - 1; q >= 0; --q) {
+    if (q > top) continue;
+    if (q == top) {
+      v = T(c(q));
+      continue;
+    }
+    d = d * t + v;
+    v = v * t + c(q);
   }
 }
 

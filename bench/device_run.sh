@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # One call on the lent GPU machine: build, GPU tests, compute-sanitizer, benchmark.
 #   run(command="bash bench/device_run.sh", carry=[".carry"])
-# STEPS (env) picks a subset: "build test sanitize bench" (default: all); ARCH_ARG, extra CMake
+# STEPS (env) picks a subset: "build test sanitize bench" (default: all); PYTEST_X= runs every
+# test instead of stopping at the first failure; ARCH_ARG, extra CMake
 # arguments (bench/ab_device.sh sets it from ARCHS). Logs under $OUT.
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -27,7 +28,7 @@ if has build; then
 fi
 python3 -c "import smoothffd; print(smoothffd.cuda_status())"
 if has test; then
-  timeout ${TEST_TIMEOUT:-300} python3 -m pytest -q -x tests/test_cuda.py tests/test_render_vertices.py tests/test_compact.py \
+  timeout ${TEST_TIMEOUT:-300} python3 -m pytest -q ${PYTEST_X--x} tests/test_cuda.py tests/test_render_vertices.py tests/test_compact.py \
     tests/test_bench_native.py 2>&1 | tee "$OUT/test_cuda.log" | tail -15
 fi
 if has sanitize; then

@@ -193,13 +193,15 @@ def test_levels(level, path):
 
 
 # Lattices whose tables put the inline kernel in its global mode (tables in device memory,
-# samples from the plan), one for each of its term counts: at level 64 the grid's tables do not
-# fit in shared memory (2145 points), degree 4 and 5 have more terms than the shared tables hold.
+# samples from the plan), one for each of its term counts (2 to 6): at level 64 the grid's
+# tables do not fit in shared memory (2145 points), degree 4 and 5 have more terms than the
+# shared tables hold.
 GLOBAL_CASES = {
     "linear-L64": (lambda rng: bspline(rng, degree=(1, 1, 1)), 64),
     "quadratic-L64": (lambda rng: bspline(rng, degree=(2, 2, 2)), 64),
     "cubic-L64": (lambda rng: bspline(rng, degree=(3, 1, 2)), 64),
     "blender-L64": (lambda rng: blender(rng, ("CATMULL_ROM", "LINEAR", "BSPLINE")), 64),
+    "degree-4-1-2": (lambda rng: bspline(rng, degree=(4, 1, 2), shape=(6, 4, 5)), 5),
     "degree-5-4-2": (lambda rng: bspline(rng, degree=(5, 4, 2), shape=(7, 6, 5)), 5),
 }
 
@@ -207,7 +209,7 @@ GLOBAL_CASES = {
 @pytest.mark.parametrize("case", sorted(GLOBAL_CASES))
 def test_inline_global_mode(case):
     """The inline kernel's global mode serves what the shared-memory tables cannot hold, for
-    every term count it is built for (2, 3, 4 and kMaxTerms), sharp and smooth meshes."""
+    every term count it is built for (2 to kMaxTerms), sharp and smooth meshes."""
     make, level = GLOBAL_CASES[case]
     rng = np.random.default_rng(len(case))
     for mesh in (cube(sharp=True, cuts=1), icosphere(1)):

@@ -191,9 +191,9 @@ static_assert(sizeof(InlinePatch) == 336 && sizeof(InlinePatch) % 16 == 0, "copi
 constexpr size_t kInlineSharedBytes = 28 * 1024;
 constexpr int kBoxPoints = 512;  // control values that fit k_inline's ctrl table (32 patches)
 
-// Terms an axis the kernels are built for: the plan's largest term count rounded up to 2, 3,
-// 4 or kMaxTerms.
-inline int kernel_terms(int max_terms) { return max_terms <= 2 ? 2 : max_terms <= 4 ? max_terms : kMaxTerms; }
+// Terms an axis the kernels are built for: the plan's largest term count, at least 2 (2 to
+// kMaxTerms: each its own instantiation, so that no padded term is summed).
+inline int kernel_terms(int max_terms) { return max_terms <= 2 ? 2 : max_terms < kMaxTerms ? max_terms : kMaxTerms; }
 // The plan's largest count / degree + 1 over its pieces.
 int plan_max_terms(const Plan& p);
 

@@ -326,19 +326,24 @@ __global__ void __launch_bounds__(256) k_loose_vertices(PlanView pv, FrameView f
   store3(fv.positions + 3 * (long long)v, v3(F[0], F[1], F[2]));
 }
 
-// Register caps: 4 blocks of 128 an SM with 3 terms (128 registers, no spills; 5 blocks spilled
-// and measured 6% slower), 2 with 2 or 4 terms, 1 beyond.
-constexpr int inline_min_blocks(int C) { return C == 3 ? 4 : C <= 4 ? 2 : 1; }
+// Register caps (blocks of 128 an SM): the shared-memory modes 4 with 3 terms (128 registers,
+// no spills; 5 blocks spilled and measured 6% slower), 2 with 2 or 4; the global mode the most
+// blocks whose cap ptxas meets without spilling on sm_90 (4 terms: 168 registers at 3 blocks,
+// where 2 blocks let it take 254; 5 terms: 167 at 3, where 1 or 2 blocks spilled at 255), and
+// 4 for kMaxTerms (16 bytes of spills; 1 block spilled more).
+constexpr int inline_min_blocks(int C, int mode) {
+  return C == 3 ? 4 : mode != kInlineGlobal ? 2 : C == 2 ? 2 : C <= 5 ? 3 : 4;
+}
 
 using InlineKernel = void (*)(PlanView, FrameView, InlineArgs, InlineControls, long long, float*);
 
 template <int C>
 InlineKernel inline_kernel_c(int mode) {
   if constexpr (C <= 4) {
-    if (mode == kInlineBoxes) return k_inline<C, kInlineBoxes, 32, 4, inline_min_blocks(C)>;
-    if (mode == kInlineWeights) return k_inline<C, kInlineWeights, 32, 4, inline_min_blocks(C)>;
+    if (mode == kInlineBoxes) return k_inline<C, kInlineBoxes, 32, 4, inline_min_blocks(C, kInlineBoxes)>;
+    if (mode == kInlineWeights) return k_inline<C, kInlineWeights, 32, 4, inline_min_blocks(C, kInlineWeights)>;
   }
-  if (mode == kInlineGlobal) return k_inline<C, kInlineGlobal, 32, 4, inline_min_blocks(C)>;
+  if (mode == kInlineGlobal) return k_inline<C, kInlineGlobal, 32, 4, inline_min_blocks(C, kInlineGlobal)>;
   throw std::logic_error("CudaEvaluator: no inline kernel for mode " + std::to_string(mode) + " with " +
                          std::to_string(C) + " terms an axis");
 }
@@ -349,6 +354,7 @@ InlineKernel inline_kernel(int terms, int mode) {
     case 2: return inline_kernel_c<2>(mode);
     case 3: return inline_kernel_c<3>(mode);
     case 4: return inline_kernel_c<4>(mode);
+    case 5: return inline_kernel_c<5>(mode);
     case kMaxTerms: return inline_kernel_c<kMaxTerms>(mode);
     default: throw std::logic_error("CudaEvaluator: no inline kernel for " + std::to_string(terms) + " terms an axis");
   }
@@ -388,6 +394,7 @@ void launch_loose_vertices(int terms, const PlanView& pv, const FrameView& fv, c
     case 2: k_loose_vertices<2><<<grid, 256, 0, stream>>>(pv, fv, D, loose, count); break;
     case 3: k_loose_vertices<3><<<grid, 256, 0, stream>>>(pv, fv, D, loose, count); break;
     case 4: k_loose_vertices<4><<<grid, 256, 0, stream>>>(pv, fv, D, loose, count); break;
+    case 5: k_loose_vertices<5><<<grid, 256, 0, stream>>>(pv, fv, D, loose, count); break;
     default: k_loose_vertices<kMaxTerms><<<grid, 256, 0, stream>>>(pv, fv, D, loose, count); break;
   }
   CK_LAUNCH(k_loose_vertices);

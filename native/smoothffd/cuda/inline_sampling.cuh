@@ -48,24 +48,31 @@ __device__ __forceinline__ void compose_inline(float4 pw, const float m[3][3], c
   compose_deformation<float>(p, pw.w, val, grad, &m[0][0], F, J);
 }
 
-// Where sample_inline reads the control values (tensor_contract's reader, lattice/
-// tensor_eval.hpp): point offset o (InlinePiece::off) gives its three coordinates.
-// SharedControls: the block's float4 copy in shared memory (the weights mode);
-// GlobalControls: the frame's upload, 3 floats a point, through the read-only cache (the
-// global mode).
+// Where sample_inline reads the control values (tensor_contract's readers, lattice/
+// tensor_eval.hpp, with offsets in points: InlinePiece::off). SharedControls: the block's
+// float4 copy in shared memory (the weights mode); GlobalControls: the frame's upload, 3
+// floats a point, through the read-only cache (the global mode).
 struct SharedControls {
   const float4* v;
-  __device__ __forceinline__ void operator()(int o, float d[3]) const {
-    const float4 q = v[o];
-    d[0] = q.x, d[1] = q.y, d[2] = q.z;
-  }
+  struct Row {
+    const float4* p;
+    __device__ __forceinline__ void operator()(int ow, float d[3]) const {
+      const float4 q = p[ow];
+      d[0] = q.x, d[1] = q.y, d[2] = q.z;
+    }
+  };
+  __device__ __forceinline__ Row row(int o) const { return Row{v + o}; }
 };
 struct GlobalControls {
   const float* __restrict__ v;
-  __device__ __forceinline__ void operator()(int o, float d[3]) const {
-    const float* q = v + 3 * (long long)o;
-    d[0] = __ldg(q), d[1] = __ldg(q + 1), d[2] = __ldg(q + 2);
-  }
+  struct Row {
+    const float* __restrict__ p;
+    __device__ __forceinline__ void operator()(int ow, float d[3]) const {
+      const float* q = p + 3 * ow;
+      d[0] = __ldg(q), d[1] = __ldg(q + 1), d[2] = __ldg(q + 2);
+    }
+  };
+  __device__ __forceinline__ Row row(int o) const { return Row{v + 3 * (long long)o}; }
 };
 
 // F and J at one sample from the inline tables: sample_point (stages.hpp) with the axis

@@ -141,6 +141,7 @@ void launch_sample(int terms, const PlanView& pv, const FrameView& fv, const flo
     case 2: k_sample<2, 4><<<grid, kThreads, 0, stream>>>(pv, fv, D); break;
     case 3: k_sample<3, 4><<<grid, kThreads, 0, stream>>>(pv, fv, D); break;
     case 4: k_sample<4, 3><<<grid, kThreads, 0, stream>>>(pv, fv, D); break;
+    case 5: k_sample<5, 2><<<grid, kThreads, 0, stream>>>(pv, fv, D); break;
     default: k_sample<kMaxTerms, 2><<<grid, kThreads, 0, stream>>>(pv, fv, D); break;
   }
   CK_LAUNCH(k_sample);

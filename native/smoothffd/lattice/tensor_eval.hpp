@@ -11,18 +11,24 @@ namespace sffd {
 SFFD_ISA_BEGIN
 
 // Control values as the contraction reads them: D is (nu, nv, nw, 3) C-order, a term's offset
-// is its control point's index along the axis times the axis's stride (nv nw, nw, 1), and
-// D(o, d) gives point o's three values. The CUDA inline kernel passes its own readers (the
-// values staged in shared memory, or read through the cache), the same contraction.
+// is its control point's index along the axis times the axis's stride (nv nw, nw, 1);
+// D.row(ou + ov) is the row of the u and v terms' offsets, and row(ow, d) gives the three
+// values of that row's point at w offset ow (the row's address once for its CW terms). The
+// CUDA inline kernel passes its own readers (the values staged in shared memory, or read
+// through the cache), the same contraction.
 template <class TD>
 struct PackedControls {
   const TD* D;
-  SFFD_HD void operator()(int o, TD d[3]) const {
-    const TD* q = D + 3 * (long long)o;
-    d[0] = q[0];
-    d[1] = q[1];
-    d[2] = q[2];
-  }
+  struct Row {
+    const TD* p;
+    SFFD_HD void operator()(int ow, TD d[3]) const {
+      const TD* q = p + 3 * ow;
+      d[0] = q[0];
+      d[1] = q[1];
+      d[2] = q[2];
+    }
+  };
+  SFFD_HD Row row(int o) const { return Row{D + 3 * (long long)o}; }
 };
 
 // Factored contraction with term counts known at compile time: contract w first, then v,
@@ -37,12 +43,12 @@ SFFD_UNROLL
     T av[3] = {0, 0, 0}, avd[3] = {0, 0, 0}, awd[3] = {0, 0, 0};  // over b: value, d/dv, d/dw
 SFFD_UNROLL
     for (int b = 0; b < CV; ++b) {
-      const int row = ou[a] + ov[b];
+      const auto row = D.row(ou[a] + ov[b]);
       T bw[3] = {0, 0, 0}, bwd[3] = {0, 0, 0};  // over c: value, d/dw
 SFFD_UNROLL
       for (int c = 0; c < CW; ++c) {
         TD d[3];
-        D(row + ow[c], d);
+        row(ow[c], d);
 SFFD_UNROLL
         for (int r = 0; r < 3; ++r) {
           bw[r] += ww[c] * (T)d[r];

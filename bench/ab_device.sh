@@ -12,7 +12,7 @@
 # ROUNDS (default 4), LEVELS (default 10), STEPS as device_run.sh's for the working tree
 # (default "build test"); NCU=1 adds the profile; CASES: semicolon-separated sets of
 # bench/ab_time.py options (e.g. "--limit 49152;--degree 4"), each timed with every tree as well
-# (label = tree + case). ARCHS: CUDA architectures of every tree's build (default: the
+# (label = tree + case), at CASE_LEVELS (default LEVELS). ARCHS: CUDA architectures of every tree's build (default: the
 # project's; 90-real builds an H100's kernels alone, in a fifth of the time). Logs under $OUT.
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -37,7 +37,9 @@ done
 IFS=';' read -r -a cases <<< "${CASES:-}"
 for r in $(seq 1 "${ROUNDS:-4}"); do
   for L in ${LEVELS:-10}; do
-    for c in "" "${cases[@]}"; do
+    lc=("")
+    [[ " ${CASE_LEVELS:-${LEVELS:-10}} " == *" $L "* ]] && lc+=("${cases[@]}")
+    for c in "${lc[@]}"; do
       # shellcheck disable=SC2086
       for ref in $REFS; do PYTHONPATH="$ref/python" python3 bench/ab_time.py --level "$L" $c --label "$(label "$ref")${c:+ $c}"; done
       # shellcheck disable=SC2086

@@ -6,11 +6,14 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <chrono>
 #include <deque>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <stdexcept>
 
+#include "smoothffd/core/cancel.hpp"
 #include "smoothffd/eval/cpu_evaluator.hpp"
 #include "smoothffd/lattice/lattice_spec.hpp"
 #include "smoothffd/plan/plan.hpp"
@@ -26,6 +29,33 @@ template <class T>
 using Arr = py::array_t<T, py::array::c_style | py::array::forcecast>;
 
 namespace {
+
+// Ctrl-C during long native work. Python runs signal handlers in the main thread only, between
+// bytecodes, so work that holds no GIL would delay KeyboardInterrupt until it ends (a
+// 128k-corner polygon took half a minute). `interruptible(fn)` runs fn with the GIL released;
+// in the main thread it installs a cancel check (core/cancel.hpp) that the core's loops poll,
+// which every 100 ms of work takes the GIL and runs the pending handlers (PyErr_CheckSignals).
+// A handler that raises stops the work (sffd::Cancelled unwinds it; nothing half-built is
+// kept) and its exception, KeyboardInterrupt for Ctrl-C, is raised here. Work shorter than
+// 100 ms never takes the GIL; other threads get no check (no handler could run there).
+unsigned long main_thread_ident = 0;  // threading.main_thread().ident, set at import
+
+template <class Fn>
+auto interruptible(Fn&& fn) -> decltype(fn()) {
+  std::optional<CancelScope> scope;
+  if (PyThread_get_thread_ident() == main_thread_ident)
+    scope.emplace([] {
+      py::gil_scoped_acquire gil;
+      return PyErr_CheckSignals() != 0;  // the handler's exception stays set for the catch below
+    });
+  try {
+    py::gil_scoped_release release;
+    return fn();
+  } catch (const Cancelled&) {  // the GIL is held again here
+    if (!PyErr_Occurred()) PyErr_SetNone(PyExc_KeyboardInterrupt);
+    throw py::error_already_set();
+  }
+}
 
 template <class T>
 std::vector<T> to_vector(const Arr<T>& a) {
@@ -89,11 +119,7 @@ py::tuple run_evaluator(Evaluator& ev, const Arr<float>& D, const py::object& ou
   const float* d = D.data();
   float* p = pos.mutable_data();
   float* n = nrm.mutable_data();
-  StageTimes t;
-  {
-    py::gil_scoped_release release;
-    t = ev.evaluate(d, p, n);
-  }
+  StageTimes t = interruptible([&] { return ev.evaluate(d, p, n); });
   return py::make_tuple(pos, nrm, times_dict(t));
 }
 
@@ -176,11 +202,7 @@ py::tuple run_compact(Evaluator& ev, const Arr<float>& D, const py::object& out_
   }
   const float* d = D.data();
   float* p = pos.mutable_data();
-  StageTimes t;
-  {
-    py::gil_scoped_release release;
-    t = ev.evaluate_compact(d, p, n);
-  }
+  StageTimes t = interruptible([&] { return ev.evaluate_compact(d, p, n); });
   return py::make_tuple(pos, nrm_obj, times_dict(t));
 }
 
@@ -193,11 +215,7 @@ py::tuple run_positions(Ev& ev, const Arr<float>& D, const py::object& out_posit
   py::array_t<float> pos = output_array(out_positions, {(py::ssize_t)plan.output_vertices, 3}, "positions");
   const float* d = D.data();
   float* p = pos.mutable_data();
-  StageTimes t;
-  {
-    py::gil_scoped_release release;
-    t = eval(d, p);
-  }
+  StageTimes t = interruptible([&] { return eval(d, p); });
   return py::make_tuple(pos, times_dict(t));
 }
 
@@ -205,6 +223,7 @@ py::tuple run_positions(Ev& ev, const Arr<float>& D, const py::object& out_posit
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "smoothffd native core: lattice bases, plan building, CPU and CUDA evaluators";
+  main_thread_ident = py::module_::import("threading").attr("main_thread")().attr("ident").cast<unsigned long>();
 
   py::class_<LatticeSpec, std::shared_ptr<LatticeSpec>>(m, "LatticeSpec")
       .def_static(
@@ -256,10 +275,13 @@ PYBIND11_MODULE(_core, m) {
              py::array_t<double> F({N, (py::ssize_t)3}), J({N, (py::ssize_t)3, (py::ssize_t)3});
              const double *p = points.data(), *d = D.data(), *w = weights.data();
              double *f = F.mutable_data(), *j = J.mutable_data();
-             {
-               py::gil_scoped_release release;
-               for (py::ssize_t i = 0; i < N; ++i) s.evaluate(p + 3 * i, d, w[i], f + 3 * i, j + 9 * i);
-             }
+             interruptible([&] {
+               CancelPoller poller;
+               for (py::ssize_t i = 0; i < N; ++i) {
+                 poller.tick();
+                 s.evaluate(p + 3 * i, d, w[i], f + 3 * i, j + 9 * i);
+               }
+             });
              return py::make_tuple(F, J);
            },
            py::arg("points"), py::arg("values"), py::arg("weights"));
@@ -321,10 +343,7 @@ PYBIND11_MODULE(_core, m) {
              py::array_t<float> bary({(py::ssize_t)p.output_vertices, (py::ssize_t)3});
              int* t = tri.mutable_data();
              float* b = bary.mutable_data();
-             {
-               py::gil_scoped_release release;
-               vertex_sources(p, t, b);
-             }
+             interruptible([&] { vertex_sources(p, t, b); });
              return py::make_tuple(tri, bary);
            },
            "(triangle (N,), barycentrics (N, 3)): the input triangle each output vertex lies in "
@@ -340,10 +359,7 @@ PYBIND11_MODULE(_core, m) {
              py::array_t<float> out(shape);
              const float* v = values.data();
              float* o = out.mutable_data();
-             {
-               py::gil_scoped_release release;
-               interpolate_corners(p, v, k, o);
-             }
+             interruptible([&] { interpolate_corners(p, v, k, o); });
              return out;
            },
            py::arg("values"),
@@ -368,12 +384,7 @@ PYBIND11_MODULE(_core, m) {
         opt.level = level;
         opt.sharp_angle_degrees = sharp_angle_degrees;
         opt.memory_limit = memory_limit;
-        std::shared_ptr<Plan> plan;
-        {
-          py::gil_scoped_release release;
-          plan = std::make_shared<Plan>(build_plan(mesh, spec, opt));
-        }
-        return plan;
+        return interruptible([&] { return std::make_shared<Plan>(build_plan(mesh, spec, opt)); });
       },
       py::arg("positions"), py::arg("corner_vertices"), py::arg("face_offsets"),
       py::arg("corner_normals"), py::arg("uvs"), py::arg("vertex_weights"), py::arg("lattice"),
@@ -387,7 +398,7 @@ PYBIND11_MODULE(_core, m) {
         "chosen by CPUID) or the baseline 'x86-64-v2'; CpuEvaluator(..., isa=...) picks one");
   py::class_<CpuEvaluator, std::shared_ptr<CpuEvaluator>>(m, "CpuEvaluator")
       .def(py::init([](std::shared_ptr<Plan> plan, int threads, const std::string& isa) {
-             return std::make_shared<CpuEvaluator>(plan, threads, isa);
+             return interruptible([&] { return std::make_shared<CpuEvaluator>(plan, threads, isa); });
            }),
            py::arg("plan"), py::arg("threads") = 0, py::kw_only(), py::arg("isa") = "auto",
            py::keep_alive<1, 2>())

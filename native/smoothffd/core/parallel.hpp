@@ -6,9 +6,12 @@
 #pragma once
 
 #include <algorithm>
+#include <atomic>
 #include <system_error>
 #include <thread>
 #include <vector>
+
+#include "smoothffd/core/cancel.hpp"
 
 namespace sffd {
 
@@ -17,13 +20,37 @@ inline int default_threads() {
   return n == 0 ? 1 : (int)n;
 }
 
+// With a cancel check installed in the calling thread (core/cancel.hpp), each chunk runs in
+// slices of about 1/64 of it (at least 1024 elements): the same elements in the same threads,
+// the calling thread polling the check between its slices, and the other threads stopping at
+// their next slice once it throws. Without one, each chunk is one call of fn, as always.
 template <class Fn>
 void parallel_for(long long n, int threads, Fn&& fn) {
+  poll_cancel();
   if (n <= 0) return;
   const long long chunks = std::min<long long>(std::max(threads, 1), (n + 1023) / 1024);
-  auto chunk = [&](long long c) { fn(n * c / chunks, n * (c + 1) / chunks); };
+  const bool sliced = CancelScope::current() != nullptr;
+  std::atomic<bool> stop{false};
+  auto chunk = [&](long long c) {
+    const long long b = n * c / chunks, e = n * (c + 1) / chunks;
+    if (!sliced) {
+      fn(b, e);
+      return;
+    }
+    const long long step = std::max<long long>(1024, (e - b + 63) / 64);
+    for (long long s = b; s < e; s += step) {
+      if (stop.load(std::memory_order_relaxed)) return;
+      try {
+        poll_cancel();  // a no-op in the started threads: the check is the caller's
+      } catch (...) {
+        stop.store(true, std::memory_order_relaxed);
+        throw;
+      }
+      fn(s, std::min(e, s + step));
+    }
+  };
   if (chunks <= 1) {
-    fn(0LL, n);
+    chunk(0);
     return;
   }
   // Joins whatever was started, also when this thread's share throws.

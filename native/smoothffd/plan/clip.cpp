@@ -6,6 +6,8 @@
 #include <map>
 #include <tuple>
 
+#include "smoothffd/core/cancel.hpp"
+
 namespace sffd {
 namespace {
 
@@ -161,7 +163,9 @@ ClipResult clip_to_knot_boxes(const std::vector<double>& X, const std::vector<in
     tol[a] = std::max(1e-5 * spacing, 1e-12 * (1.0 + mag));
   }
   std::vector<Poly> polys, next;
+  CancelPoller poller(1024);
   for (int t = 0; t < T; ++t) {
+    poller.tick();
     polys.assign(1, Poly(3));
     for (int k = 0; k < 3; ++k) {
       polys[0][k].id = tv[3 * t + k];
@@ -178,6 +182,7 @@ ClipResult clip_to_knot_boxes(const std::vector<double>& X, const std::vector<in
         double v = planes[a][pi];
         if (!(v > lo + tol[a] && v < hi - tol[a])) continue;
         next.clear();
+        poller.tick();
         for (const Poly& p : polys) c.split(p, a, pi, v, tol[a], t, next);
         polys.swap(next);
         clipped = true;
@@ -194,7 +199,10 @@ ClipResult clip_to_knot_boxes(const std::vector<double>& X, const std::vector<in
     double nrm[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
     double l = std::sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
     for (double& x : nrm) x = l > 0 ? x / l : 0.0;
-    for (const Poly& p : polys) c.triangulate(p, nrm, t);
+    for (const Poly& p : polys) {
+      poller.tick();
+      c.triangulate(p, nrm, t);
+    }
   }
   return out;
 }

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "smoothffd/core/cancel.hpp"
 #include "smoothffd/core/parallel.hpp"
 #include "smoothffd/mesh/triangulate.hpp"
 #include "smoothffd/plan/clip.hpp"
@@ -165,7 +166,9 @@ void build_render_vertices(Plan& plan, int SV, const TessellationTables& tess, c
       if (corner_render[root] < 0) corner_render[root] = add(v, c / 3, corner_g[c % 3]);
     }
   std::vector<int> edge_base(E);
+  CancelPoller poller(256);
   for (int e = 0; e < E; ++e) {
+    poller.tick();
     edge_base[e] = (int)plan.render_position.size();
     for (int m = 1; m < L; ++m) {
       long long o = SV + (long long)e * (L - 1) + (m - 1);
@@ -188,6 +191,7 @@ void build_render_vertices(Plan& plan, int SV, const TessellationTables& tess, c
   plan.patch_grid_render.resize((size_t)P * G);
   for (int p = 0; p < P; ++p)
     for (int g = 0; g < G; ++g) {
+      if (g == 0) poller.tick();
       const GridPoint& gp = tess.points[g];
       long long o = plan.patch_grid_vertex[(size_t)p * G + g];
       int r;
@@ -312,7 +316,9 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   }
   std::vector<double> moved(clip.flat);
   std::vector<double> sub_weight(SV, 1.0);
+  CancelPoller poller(256);
   for (int v = 0; v < SV; ++v) {
+    poller.tick();
     if (v < V) {
       if (!mesh.vertex_weight.empty()) sub_weight[v] = mesh.vertex_weight[v];
       continue;
@@ -335,6 +341,7 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   plan.patch_adjust_normal.resize(9 * (size_t)P);
   std::vector<double> render_d(9 * (size_t)P);
   for (int p = 0; p < P; ++p) {
+    poller.tick();
     int t = clip.patch_tri[p];
     plan.patch_face[p] = tr.face[t];
     double Pt[9], Nt[9];
@@ -427,6 +434,7 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   }
   plan.patch_samples.resize((size_t)P * K);
   for (int p = 0; p < P; ++p) {
+    poller.tick();
     const int* cv = &plan.patch_vertex[3 * p];
     for (int k = 0; k < K; ++k) {
       const int* q = &fit.numerator[3 * k];
@@ -489,6 +497,7 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   for (int v = 0; v < SV; ++v)
     for (int i = 0; i < 3; ++i) plan.rest_positions[3 * (size_t)v + i] = (float)clip.flat[3 * (size_t)v + i];
   for (int p = 0; p < P; ++p) {
+    poller.tick();
     const int* cv = &plan.patch_vertex[3 * p];
     for (int g = 0; g < G; ++g) {
       const GridPoint& gp = tess.points[g];
@@ -519,6 +528,7 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   const int LL = L * L;
   for (int p = 0; p < P; ++p)
     for (int t = 0; t < LL; ++t) {
+      if (t == 0) poller.tick();
       size_t ot = (size_t)p * LL + t;
       plan.face_index[ot] = plan.patch_face[p];
       for (int c = 0; c < 3; ++c)

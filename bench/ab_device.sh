@@ -8,7 +8,11 @@
 #   each carried (carry=[".carry", "ab_ref", "ab_exp1", ...]: 8 paths, 64 MiB in all) and built
 #   in parallel; label = the folder's name ("ref" for ab_ref). An experiment on a branch is a
 #   reference tree too: `git archive exp/x ... | tar -x -C ab_exp1`.
-# TEST_REFS: those of REFS to run the GPU tests in as well (their archives must hold tests/).
+# TEST_REFS: those of REFS to run the GPU tests in as well (their archives must hold tests/):
+#   REF_TESTS (default tests/test_cuda.py tests/test_render_vertices.py), those a tree has.
+# NEW=0: no working tree (build, tests, timing): compare archives only, e.g. ab_new from
+#   `git archive HEAD ...` against ab_ref, when the working tree holds others' unfinished work.
+#   Labels: "ref" for ab_ref, "new" for ab_new and the working tree, else the folder's name.
 # ROUNDS (default 4), LEVELS (default 10), STEPS as device_run.sh's for the working tree
 # (default "build test"); NCU=1 adds the profile; CASES: semicolon-separated sets of
 # bench/ab_time.py options (e.g. "--limit 49152;--degree 4"), each timed with every tree as well
@@ -19,7 +23,10 @@ cd "$(dirname "$0")/.."
 OUT=${OUT:-/tmp/sffd-out}; mkdir -p "$OUT"
 REFS=${REFS:-${REF:-ab_ref}}
 export PATH="$PATH:/usr/local/cuda/bin" PYTHONUNBUFFERED=1
-label() { [ "$1" = ab_ref ] && echo ref || basename "$1"; }
+label() { case "$1" in ab_ref) echo ref ;; ab_new) echo new ;; *) basename "$1" ;; esac; }
+if [ -d .carry/eigen3 ]; then  # before any build starts (device_run.sh does it too)
+  cp -r .carry/eigen3 /usr/include/ && mkdir -p /usr/share/eigen3/cmake && cp .carry/eigen3-cmake/* /usr/share/eigen3/cmake/
+fi
 ARCH_ARG=${ARCHS:+-DSMOOTHFFD_CUDA_ARCHITECTURES=$ARCHS}
 export ARCH_ARG
 for ref in $REFS; do
@@ -27,11 +34,13 @@ for ref in $REFS; do
       CMAKE_ARGS="-DSMOOTHFFD_TESTS=OFF $ARCH_ARG" bash scripts/build.sh > "$OUT/build_$(basename "$ref").log" 2>&1
     echo "$ref build rc=$?" ) &
 done
-STEPS=${STEPS:-"build test"} bash bench/device_run.sh 2>&1 | grep -v "^ *Function\|REG:\|STACK:" | tail -20
+[ "${NEW:-1}" = 1 ] && STEPS=${STEPS:-"build test"} bash bench/device_run.sh 2>&1 | grep -v "^ *Function\|REG:\|STACK:" | tail -20
 wait
 for ref in ${TEST_REFS:-}; do
   echo "== GPU tests in $ref"
-  ( cd "$ref" && PYTHONPATH="$PWD/python" timeout 300 python3 -m pytest -q -x tests/test_cuda.py tests/test_render_vertices.py \
+  tests=()
+  for t in ${REF_TESTS:-tests/test_cuda.py tests/test_render_vertices.py}; do [ -f "$ref/$t" ] && tests+=("$t"); done
+  ( cd "$ref" && PYTHONPATH="$PWD/python" timeout ${TEST_TIMEOUT:-300} python3 -m pytest -q ${PYTEST_X--x} "${tests[@]}" \
       2>&1 | tee "$OUT/test_$(basename "$ref").log" | tail -4 )
 done
 IFS=';' read -r -a cases <<< "${CASES:-}"
@@ -43,7 +52,7 @@ for r in $(seq 1 "${ROUNDS:-4}"); do
       # shellcheck disable=SC2086
       for ref in $REFS; do PYTHONPATH="$ref/python" python3 bench/ab_time.py --level "$L" $c --label "$(label "$ref")${c:+ $c}"; done
       # shellcheck disable=SC2086
-      PYTHONPATH="$PWD/python" python3 bench/ab_time.py --level "$L" $c --label "new${c:+ $c}"
+      [ "${NEW:-1}" = 1 ] && PYTHONPATH="$PWD/python" python3 bench/ab_time.py --level "$L" $c --label "new${c:+ $c}"
     done
   done
 done 2>&1 | tee "$OUT/ab.log"

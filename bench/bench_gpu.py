@@ -9,6 +9,7 @@ number and prints a summary table last.
 
 import argparse
 import json
+import os
 import sys
 import time
 
@@ -54,16 +55,27 @@ def benchmark(ev, plan, path, limit, vals, iters):
     device-to-device copy floor."""
     if hasattr(ev, "benchmark"):  # a tree from before the harness moved to bench/native
         return ev.benchmark(vals, iters)
-    import sffd_bench  # bench/native, built with the development build next to this file
-    return sffd_bench.benchmark(plan, vals, iters, path=path, shared_memory_limit=limit)
+    return bench_module().benchmark(plan, vals, iters, path=path, shared_memory_limit=limit)
+
+
+def bench_module():
+    """bench/native's sffd_bench of the tree whose smoothffd is imported (a development build
+    puts it in that tree's bench/), else the first on the path."""
+    tree_bench = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(smoothffd.__file__)))),
+                              "bench")
+    sys.path.insert(0, tree_bench)
+    try:
+        import sffd_bench
+    finally:
+        sys.path.remove(tree_bench)
+    return sffd_bench
 
 
 def upsampling_baseline(plan, points, normals, pieces):
     """The paper's uniform upsampling baseline (bench/native's, or a tree's own from before)."""
     if hasattr(_core, "CudaUpsamplingBaseline"):
         return _core.CudaUpsamplingBaseline(plan, points, normals, pieces)
-    import sffd_bench
-    return sffd_bench.UpsamplingBaseline(plan, points, normals, pieces)
+    return bench_module().UpsamplingBaseline(plan, points, normals, pieces)
 
 
 def cpu_time(plan, vals, reps):

@@ -6,8 +6,6 @@
 #include <map>
 #include <tuple>
 
-#include "smoothffd/core/cancel.hpp"
-
 namespace sffd {
 namespace {
 
@@ -22,9 +20,42 @@ struct Clipper {
   const LatticeSpec& lattice;
   ClipResult& out;
   std::vector<double> param;  // #SV x 3: parameter-space position of every sub-vertex
+  std::vector<double> reach;  // #SV x 3: snap distance in parameter units, per axis
   std::map<std::tuple<int, int, int, int>, int> cut_vertex;  // (lo id, hi id, axis, plane)
+  double floor_tol[3] = {0, 0, 0};  // parameter units: rounding noise of "on the plane"
+  double grad[3] = {0, 0, 0};       // |ds_a/dp|: parameter units per object unit
+  int inputs = 0;                   // V: sub-vertices [0, V) are the input vertices
+  std::vector<int> ring_start, ring;  // input vertex -> its neighbours in the triangles (CSR)
+  std::vector<double> ring_length;    // the length of each of those edges
 
   const double* s(int id) const { return &param[3 * (size_t)id]; }
+
+  // Sets the snap distance of sub-vertex id (object units), its per-axis reach in parameter
+  // units, and the bound ClipResult::snap reports (at least the distance).
+  void set_snap(int id, double dist, double bound) {
+    out.snap[id] = std::max(dist, bound);
+    for (int a = 0; a < 3; ++a) reach[3 * (size_t)id + a] = std::max(floor_tol[a], dist * grad[a]);
+  }
+
+  // Side of sub-vertex id of the plane s_a = c: -1, +1, or 0 where it counts as on the plane.
+  // Input vertices: within rounding, or when the plane crosses one of the vertex's edges within
+  // kClipEdgeSnap of the edge's length from it. Clip vertices: within their snap distance.
+  int side_of(int id, int a, double c) const {
+    const double d = s(id)[a] - c;
+    if (std::fabs(d) <= (id < inputs ? floor_tol[a] : reach[3 * (size_t)id + a])) return 0;
+    if (id < inputs)
+      for (int i = ring_start[id]; i < ring_start[id + 1]; ++i) {
+        const double dw = s(ring[i])[a] - c;
+        // The plane crosses the edge near this end ...
+        if ((dw < 0) != (d < 0) && std::fabs(dw) > floor_tol[a] &&
+            std::fabs(d) < kClipEdgeSnap * std::fabs(dw - d))
+          return 0;
+        // ... or runs along it: both ends within kClipEdgeSnap of its length (a thin strip).
+        const double len = ring_length[i] * grad[a] * kClipEdgeSnap;
+        if (std::fabs(d) < len && std::fabs(dw) < len) return 0;
+      }
+    return d < 0 ? -1 : 1;
+  }
 
   // The vertex where the segment u-v crosses plane `pi` (value c) of axis a. Computed from the
   // lower id so both sides of a shared segment compute (and find) the same vertex.
@@ -42,36 +73,56 @@ struct Clipper {
     }
     x.id = out.sub_vertices();
     cut_vertex.emplace(key, x.id);
+    double len2 = 0;
     for (int i = 0; i < 3; ++i) {
       double fu = out.flat[3 * (size_t)u.id + i], fv = out.flat[3 * (size_t)v.id + i];
       out.flat.push_back(fu + tau * (fv - fu));
+      len2 += (fv - fu) * (fv - fu);
       double su = s(u.id)[i], sv = s(v.id)[i];
       param.push_back(i == a ? c : su + tau * (sv - su));
       out.origin_bary.push_back(x.bary[i]);
     }
     out.origin_tri.push_back(tri);
+    out.snap.push_back(0);
+    reach.resize(3 * (size_t)out.sub_vertices());
+    // Its own snap: of the segment it splits. A segment between vertices that were snapped to a
+    // plane lies off it by as much as they do: the bound is inherited.
+    set_snap(x.id, kClipSnap * std::sqrt(len2), std::max(out.snap[u.id], out.snap[v.id]));
     return x;
   }
 
-  // Sutherland-Hodgman split of a convex polygon by the plane s_a = c. Vertices within `tol`
-  // of the plane belong to both halves; a polygon lying in the plane stays whole (below).
-  void split(const Poly& poly, int a, int pi, double c, double tol, int tri,
-             std::vector<Poly>& result) {
+  // Sutherland-Hodgman split of a convex polygon by the plane s_a = c. Vertices within their
+  // snap distance of the plane belong to both halves; a polygon lying in the plane stays whole
+  // (below).
+  void split(const Poly& poly, int a, int pi, double c, int tri, std::vector<Poly>& result) {
     Poly below, above;
     bool has_below = false, has_above = false;
     int n = (int)poly.size();
-    auto side = [&](const PolyVertex& v) {
-      double d = s(v.id)[a] - c;
-      return d < -tol ? -1 : (d > tol ? 1 : 0);
-    };
+    auto side = [&](const PolyVertex& v) { return side_of(v.id, a, c); };
+    std::vector<int> sd(n);
+    for (int i = 0; i < n; ++i) sd[i] = side(poly[i]);
     for (int i = 0; i < n; ++i) {
       const PolyVertex& cur = poly[i];
       const PolyVertex& nxt = poly[(i + 1) % n];
-      int sc = side(cur), sn = side(nxt);
+      int sc = sd[i], sn = sd[(i + 1) % n];
       has_below |= sc < 0;
       has_above |= sc > 0;
-      if (sc <= 0) below.push_back(cur);
-      if (sc >= 0) above.push_back(cur);
+      // A vertex on the plane goes to both halves. Snapped vertices sit up to their snap
+      // distance off the plane, so a (nearly convex) piece can also touch the plane at a run of
+      // vertices and cross it elsewhere, or have two consecutive vertices on it with the piece
+      // on both sides: a run whose nearest off-plane neighbours lie on one side belongs to that
+      // side's half only; a run between the two sides goes whole to the side after it, and its
+      // first vertex also to the side before it (where the cut starts).
+      int to = 0;
+      if (sc == 0) {
+        int before = 0, after = 0;
+        for (int j = 1; j < n && !before; ++j) before = sd[(i + n - j) % n];
+        for (int j = 1; j < n && !after; ++j) after = sd[(i + j) % n];
+        if (before == after) to = before;
+        else if (sd[(i + n - 1) % n] == 0) to = after;
+      }
+      if (sc < 0 || (sc == 0 && to <= 0)) below.push_back(cur);
+      if (sc > 0 || (sc == 0 && to >= 0)) above.push_back(cur);
       if (sc * sn < 0) {
         PolyVertex x = crossing(cur, nxt, a, pi, c, tri);
         below.push_back(x);
@@ -145,8 +196,10 @@ ClipResult clip_to_knot_boxes(const std::vector<double>& X, const std::vector<in
   out.flat = X;
   out.origin_tri.assign(V, -1);
   out.origin_bary.assign(3 * (size_t)V, 0.0);
-  Clipper c{lattice, out, {}, {}};
+  out.snap.assign(V, 0.0);
+  Clipper c{lattice, out, {}, {}, {}};
   c.param.resize(3 * (size_t)V);
+  c.reach.resize(3 * (size_t)V);
   for (int v = 0; v < V; ++v) lattice.to_param(&X[3 * (size_t)v], &c.param[3 * (size_t)v]);
   std::array<std::vector<double>, 3> planes;
   std::array<double, 3> tol;
@@ -161,11 +214,37 @@ ClipResult clip_to_knot_boxes(const std::vector<double>& X, const std::vector<in
       spacing = std::min(spacing, planes[a][i] - planes[a][i - 1]);
     double mag = planes[a].empty() ? 0.0 : std::max(std::fabs(planes[a].front()), std::fabs(planes[a].back()));
     tol[a] = std::max(1e-5 * spacing, 1e-12 * (1.0 + mag));
+    c.floor_tol[a] = tol[a];
+    const double* A = lattice.object_to_param[a];
+    c.grad[a] = std::sqrt(A[0] * A[0] + A[1] * A[1] + A[2] * A[2]);
+  }
+  // Input vertices: their neighbours (for side_of) and their snap distance, which only the
+  // tests read (ClipResult::snap): kClipEdgeSnap of their longest edge.
+  c.inputs = V;
+  {
+    std::vector<double> longest(V, 0.0);
+    c.ring_start.assign(V + 1, 0);
+    for (int t = 0; t < T; ++t)
+      for (int k = 0; k < 3; ++k) c.ring_start[tv[3 * t + k] + 1] += 2;
+    for (int v = 0; v < V; ++v) c.ring_start[v + 1] += c.ring_start[v];
+    c.ring.resize(c.ring_start[V]);
+    c.ring_length.resize(c.ring_start[V]);
+    std::vector<int> fill(c.ring_start.begin(), c.ring_start.end() - 1);
+    for (int t = 0; t < T; ++t)
+      for (int k = 0; k < 3; ++k) {
+        int u = tv[3 * t + k], w = tv[3 * t + (k + 1) % 3];
+        double d2 = 0;
+        for (int i = 0; i < 3; ++i) d2 += (X[3 * (size_t)u + i] - X[3 * (size_t)w + i]) * (X[3 * (size_t)u + i] - X[3 * (size_t)w + i]);
+        c.ring_length[fill[u]] = c.ring_length[fill[w]] = std::sqrt(d2);
+        c.ring[fill[u]++] = w;
+        c.ring[fill[w]++] = u;
+        longest[u] = std::max(longest[u], d2);
+        longest[w] = std::max(longest[w], d2);
+      }
+    for (int v = 0; v < V; ++v) c.set_snap(v, 0.0, kClipEdgeSnap * std::sqrt(longest[v]));
   }
   std::vector<Poly> polys, next;
-  CancelPoller poller(1024);
   for (int t = 0; t < T; ++t) {
-    poller.tick();
     polys.assign(1, Poly(3));
     for (int k = 0; k < 3; ++k) {
       polys[0][k].id = tv[3 * t + k];
@@ -180,10 +259,9 @@ ClipResult clip_to_knot_boxes(const std::vector<double>& X, const std::vector<in
       }
       for (int pi = 0; pi < (int)planes[a].size(); ++pi) {
         double v = planes[a][pi];
-        if (!(v > lo + tol[a] && v < hi - tol[a])) continue;
+        if (!(v > lo && v < hi)) continue;  // split() decides, with each vertex's snap
         next.clear();
-        poller.tick();
-        for (const Poly& p : polys) c.split(p, a, pi, v, tol[a], t, next);
+        for (const Poly& p : polys) c.split(p, a, pi, v, t, next);
         polys.swap(next);
         clipped = true;
       }
@@ -199,10 +277,7 @@ ClipResult clip_to_knot_boxes(const std::vector<double>& X, const std::vector<in
     double nrm[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
     double l = std::sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
     for (double& x : nrm) x = l > 0 ? x / l : 0.0;
-    for (const Poly& p : polys) {
-      poller.tick();
-      c.triangulate(p, nrm, t);
-    }
+    for (const Poly& p : polys) c.triangulate(p, nrm, t);
   }
   return out;
 }

@@ -1,6 +1,11 @@
 #include "smoothffd/mesh/triangulate.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <queue>
+
+#include "smoothffd/core/cancel.hpp"
 
 namespace sffd {
 namespace {
@@ -17,11 +22,20 @@ bool in_triangle(P2 p, P2 a, P2 b, P2 c, double eps) {
   return cross2(a, b, p) >= -eps && cross2(b, c, p) >= -eps && cross2(c, a, p) >= -eps;
 }
 
-void clip_ears(const std::vector<P2>& pts, const std::vector<int>& vid, std::vector<int> ring,
-               std::vector<int>& out_local) {
+// Tolerance of the orientation tests: relative to the polygon's extent.
+double area_eps(const std::vector<P2>& pts) {
   double scale = 0;
   for (const P2& p : pts) scale = std::fmax(scale, std::fmax(std::fabs(p.x), std::fabs(p.y)));
-  double eps = 1e-14 * (scale * scale + 1e-300);
+  return 1e-14 * (scale * scale + 1e-300);
+}
+
+// Polygons of up to kSmallPolygon corners: every step scans the ring for the best-shaped ear,
+// O(n^3) at worst, cheap for such n (their triangulations are pinned by the plans' tests).
+constexpr int kSmallPolygon = 64;
+
+void clip_ears(const std::vector<P2>& pts, const std::vector<int>& vid, std::vector<int> ring,
+               std::vector<int>& out_local) {
+  const double eps = area_eps(pts);
   while (ring.size() > 3) {
     int n = (int)ring.size();
     int best = -1;
@@ -42,7 +56,6 @@ void clip_ears(const std::vector<P2>& pts, const std::vector<int>& vid, std::vec
       if (q > best_q) {
         best_q = q;
         best = i;
-        if (n > 64) break;  // large polygons: first valid ear, keeps this O(n^2)
       }
     }
     if (best < 0) {
@@ -53,6 +66,7 @@ void clip_ears(const std::vector<P2>& pts, const std::vector<int>& vid, std::vec
         double area = cross2(pts[ring[(i + n - 1) % n]], pts[ring[i]], pts[ring[(i + 1) % n]]);
         if (area > most) { most = area; best = i; }
       }
+      if (best < 0) best = 0;  // every area NaN (coordinates near the double limit)
     }
     out_local.push_back(ring[(best + n - 1) % n]);
     out_local.push_back(ring[best]);
@@ -61,6 +75,262 @@ void clip_ears(const std::vector<P2>& pts, const std::vector<int>& vid, std::vec
   }
   out_local.insert(out_local.end(), ring.begin(), ring.end());
 }
+
+// Larger polygons: the same greedy order (the best-shaped ear first, the most convex corner
+// when no ear is left) in O(n log n) for ordinary polygons, where clip_ears is O(n^2) or worse
+// (128k corners took 24-32 s). The corners form a linked ring; a heap holds the valid ears by
+// shape, with lazy deletion (an entry whose corner changed since is skipped). Only corners
+// that are not strictly convex can lie in an ear of a simple polygon, so only they are tested,
+// through a k-d tree over all corners whose nodes keep the count and bounding box of such
+// corners still in the ring (a node without any, or wholly outside an edge of the ear, is
+// skipped). An ear blocked by a corner waits on it and is tested again when that corner turns
+// convex or is cut.
+class LargeEarClipper {
+ public:
+  LargeEarClipper(const std::vector<P2>& pts, const std::vector<int>& vid)
+      : pts_(pts), vid_(vid), n_((int)pts.size()), eps_(area_eps(pts)), prev_(n_), next_(n_),
+        stamp_(n_, 0), area_(n_), alive_(n_, 1), blocking_(n_, 0), waiting_(n_), leaf_(n_) {
+    for (int i = 0; i < n_; ++i) {
+      prev_[i] = (i + n_ - 1) % n_;
+      next_[i] = (i + 1) % n_;
+    }
+    build_tree();
+    for (int i = 0; i < n_; ++i) {
+      area_[i] = corner_area(i);
+      if (!(area_[i] > eps_)) set_blocking(i, true);
+    }
+    for (int i = 0; i < n_; ++i) {
+      most_convex_.push({key(area_[i]), i, stamp_[i]});
+      if (!blocking_[i]) test_ear(i);
+    }
+  }
+
+  void run(std::vector<int>& out) {
+    CancelPoller poller(1024);
+    for (int remaining = n_; remaining > 3; --remaining) {
+      poller.tick();
+      int b = pop_ear();
+      if (b < 0) b = pop_most_convex();
+      const int a = prev_[b], c = next_[b];
+      out.push_back(a);
+      out.push_back(b);
+      out.push_back(c);
+      alive_[b] = 0;
+      if (blocking_[b]) set_blocking(b, false);  // a cut corner blocks nothing: its waiters retry
+      next_[a] = c;
+      prev_[c] = a;
+      refresh(a);
+      refresh(c);
+      retry_waiters();
+    }
+    int first = 0;
+    while (!alive_[first]) ++first;
+    out.push_back(first);
+    out.push_back(next_[first]);
+    out.push_back(next_[next_[first]]);
+  }
+
+ private:
+  struct Entry {
+    double key;
+    int i;
+    unsigned stamp;
+    bool operator<(const Entry& o) const { return key < o.key || (key == o.key && i > o.i); }
+  };
+  struct Node {
+    int lo, hi;  // corners order_[lo, hi)
+    int left = -1, right = -1, parent = -1;
+    int blocking = 0;  // corners in the node still in the ring and not strictly convex ...
+    double x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;  // ... their box
+  };
+
+  static double key(double v) { return std::isnan(v) ? -INFINITY : v; }
+  double corner_area(int i) const { return cross2(pts_[prev_[i]], pts_[i], pts_[next_[i]]); }
+
+  void build_tree() {
+    order_.resize(n_);
+    for (int i = 0; i < n_; ++i) order_[i] = i;
+    nodes_.reserve(2 * (size_t)n_ / kLeaf + 2);
+    build_node(0, n_, -1);
+  }
+  int build_node(int lo, int hi, int parent) {
+    Node nd;
+    nd.lo = lo;
+    nd.hi = hi;
+    nd.parent = parent;
+    double x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;
+    for (int k = lo; k < hi; ++k) {
+      const P2& p = pts_[order_[k]];
+      x0 = std::fmin(x0, p.x);
+      x1 = std::fmax(x1, p.x);
+      y0 = std::fmin(y0, p.y);
+      y1 = std::fmax(y1, p.y);
+    }
+    const int id = (int)nodes_.size();
+    nodes_.push_back(nd);
+    if (hi - lo <= kLeaf) {
+      for (int k = lo; k < hi; ++k) leaf_[order_[k]] = id;
+      return id;
+    }
+    const bool by_x = !(x1 - x0 < y1 - y0);
+    const int mid = lo + (hi - lo) / 2;
+    std::nth_element(order_.begin() + lo, order_.begin() + mid, order_.begin() + hi, [&](int u, int v) {
+      double pu = by_x ? pts_[u].x : pts_[u].y, pv = by_x ? pts_[v].x : pts_[v].y;
+      return pu < pv || (pu == pv && u < v);
+    });
+    const int l = build_node(lo, mid, id);
+    const int r = build_node(mid, hi, id);
+    nodes_[id].left = l;
+    nodes_[id].right = r;
+    return id;
+  }
+
+  void set_blocking(int i, bool on) {
+    blocking_[i] = on;
+    Node& leaf = nodes_[leaf_[i]];
+    leaf.blocking = 0;
+    leaf.x0 = leaf.y0 = INFINITY;
+    leaf.x1 = leaf.y1 = -INFINITY;
+    for (int k = leaf.lo; k < leaf.hi; ++k) {
+      const int v = order_[k];
+      if (!blocking_[v]) continue;
+      ++leaf.blocking;
+      leaf.x0 = std::fmin(leaf.x0, pts_[v].x);
+      leaf.x1 = std::fmax(leaf.x1, pts_[v].x);
+      leaf.y0 = std::fmin(leaf.y0, pts_[v].y);
+      leaf.y1 = std::fmax(leaf.y1, pts_[v].y);
+    }
+    for (int id = leaf.parent; id >= 0; id = nodes_[id].parent) {
+      Node& nd = nodes_[id];
+      const Node &l = nodes_[nd.left], &r = nodes_[nd.right];
+      nd.blocking = l.blocking + r.blocking;
+      nd.x0 = std::fmin(l.x0, r.x0);
+      nd.x1 = std::fmax(l.x1, r.x1);
+      nd.y0 = std::fmin(l.y0, r.y0);
+      nd.y1 = std::fmax(l.y1, r.y1);
+    }
+    if (!on) {  // ears waiting on i may be free now
+      for (const Entry& w : waiting_[i]) retry_.push_back(w);
+      waiting_[i].clear();
+      waiting_[i].shrink_to_fit();
+    }
+  }
+
+  // Largest value of cross2(a, b, p) over the node's box (cross2 is affine in p).
+  static double box_max_cross(const Node& nd, P2 a, P2 b) {
+    P2 p{(b.y - a.y) > 0 ? nd.x0 : nd.x1, (b.x - a.x) > 0 ? nd.y1 : nd.y0};
+    return cross2(a, b, p);
+  }
+
+  // A corner that is not strictly convex inside the ear at b (inclusive, as clip_ears), or -1.
+  int find_blocker(int b) {
+    const int a = prev_[b], c = next_[b];
+    const P2 pa = pts_[a], pb = pts_[b], pc = pts_[c];
+    // The ear's box, grown by what the tolerance admits beyond an edge longer than 1e-7 of
+    // the polygon's extent (eps / length = 1e-7 of the extent).
+    const double margin = std::sqrt(eps_);
+    const double x0 = std::fmin(pa.x, std::fmin(pb.x, pc.x)) - margin;
+    const double x1 = std::fmax(pa.x, std::fmax(pb.x, pc.x)) + margin;
+    const double y0 = std::fmin(pa.y, std::fmin(pb.y, pc.y)) - margin;
+    const double y1 = std::fmax(pa.y, std::fmax(pb.y, pc.y)) + margin;
+    stack_.clear();
+    stack_.push_back(0);
+    while (!stack_.empty()) {
+      const Node& nd = nodes_[stack_.back()];
+      stack_.pop_back();
+      if (nd.blocking == 0 || nd.x0 > x1 || nd.x1 < x0 || nd.y0 > y1 || nd.y1 < y0) continue;
+      if (box_max_cross(nd, pa, pb) < -eps_ || box_max_cross(nd, pb, pc) < -eps_ ||
+          box_max_cross(nd, pc, pa) < -eps_)
+        continue;  // wholly outside one edge of the ear
+      if (nd.left < 0) {
+        for (int k = nd.lo; k < nd.hi; ++k) {
+          const int v = order_[k];
+          if (!blocking_[v] || v == a || v == b || v == c) continue;
+          if (vid_[v] == vid_[a] || vid_[v] == vid_[b] || vid_[v] == vid_[c]) continue;
+          if (in_triangle(pts_[v], pa, pb, pc, eps_)) return v;
+        }
+        continue;
+      }
+      stack_.push_back(nd.right);
+      stack_.push_back(nd.left);
+    }
+    return -1;
+  }
+
+  double quality(int b) const {
+    const P2 pa = pts_[prev_[b]], pb = pts_[b], pc = pts_[next_[b]];
+    double q = area_[b] / (dist2(pa, pb) + dist2(pb, pc) + dist2(pc, pa));
+    return std::isnan(q) ? 0.0 : q;
+  }
+
+  // b is strictly convex: queue its ear, or make it wait on a corner inside it.
+  void test_ear(int b) {
+    int r = find_blocker(b);
+    if (r >= 0)
+      waiting_[r].push_back({0.0, b, stamp_[b]});
+    else
+      ears_.push({quality(b), b, stamp_[b]});
+  }
+
+  // b's neighbours changed: a new corner angle and ear.
+  void refresh(int b) {
+    ++stamp_[b];
+    area_[b] = corner_area(b);
+    most_convex_.push({key(area_[b]), b, stamp_[b]});
+    const bool blocking = !(area_[b] > eps_);
+    if (blocking != (bool)blocking_[b]) set_blocking(b, blocking);
+    if (!blocking) test_ear(b);
+  }
+
+  bool fresh(const Entry& e) const { return alive_[e.i] && stamp_[e.i] == e.stamp; }
+
+  void retry_waiters() {
+    while (!retry_.empty()) {
+      Entry w = retry_.back();
+      retry_.pop_back();
+      if (fresh(w) && !blocking_[w.i]) test_ear(w.i);
+    }
+  }
+
+  // The best-shaped ear that is still valid, or -1.
+  int pop_ear() {
+    while (!ears_.empty()) {
+      Entry e = ears_.top();
+      ears_.pop();
+      if (!fresh(e) || blocking_[e.i]) continue;
+      int r = find_blocker(e.i);  // a corner may have turned reflex since (degenerate input)
+      if (r >= 0) {
+        waiting_[r].push_back(e);
+        continue;
+      }
+      return e.i;
+    }
+    return -1;
+  }
+
+  int pop_most_convex() {
+    while (true) {
+      Entry e = most_convex_.top();
+      most_convex_.pop();
+      if (fresh(e)) return e.i;
+    }
+  }
+
+  static constexpr int kLeaf = 8;
+  const std::vector<P2>& pts_;
+  const std::vector<int>& vid_;
+  const int n_;
+  const double eps_;
+  std::vector<int> prev_, next_;
+  std::vector<unsigned> stamp_;
+  std::vector<double> area_;
+  std::vector<uint8_t> alive_, blocking_;
+  std::vector<std::vector<Entry>> waiting_;
+  std::vector<Entry> retry_;
+  std::priority_queue<Entry> ears_, most_convex_;
+  std::vector<int> order_, leaf_, stack_;
+  std::vector<Node> nodes_;
+};
 
 }  // namespace
 
@@ -72,7 +342,9 @@ Triangulation triangulate_polygons(const std::vector<double>& X, const std::vect
   out.face.reserve(F);
   std::vector<int> poly, vid, local;
   std::vector<P2> pts;
+  CancelPoller poller;
   for (int f = 0; f < F; ++f) {
+    poller.tick();
     poly.clear();
     for (int c = fo[f]; c < fo[f + 1]; ++c)
       if (poly.empty() || cv[poly.back()] != cv[c]) poly.push_back(c);
@@ -110,7 +382,10 @@ Triangulation triangulate_polygons(const std::vector<double>& X, const std::vect
       ring[i] = i;
     }
     local.clear();
-    clip_ears(pts, vid, ring, local);
+    if (n <= kSmallPolygon)
+      clip_ears(pts, vid, ring, local);
+    else
+      LargeEarClipper(pts, vid).run(local);
     for (size_t t = 0; t + 2 < local.size(); t += 3) {
       int a = local[t], b = local[t + 1], c = local[t + 2];
       if (vid[a] == vid[b] || vid[b] == vid[c] || vid[c] == vid[a]) continue;

@@ -90,16 +90,25 @@ StageTimes CpuEvaluator::evaluate(const float* D, float* positions, float* corne
 }
 
 StageTimes CpuEvaluator::evaluate_compact(const float* D, float* positions, float* render_normals) {
-  return render_normals ? run(D, positions, nullptr, render_normals) : evaluate_positions(D, positions);
+  return run(D, positions, nullptr, render_normals);
 }
 
-// The whole frame; the normals tessellated per triangle corner (corner_normals) or once per
-// render vertex by its owner (render_normals), one of them non-null.
+StageTimes CpuEvaluator::evaluate_positions(const float* D, float* positions) {
+  return run(D, positions, nullptr, nullptr);
+}
+
+// The whole frame; the normals tessellated per triangle corner (corner_normals), once per
+// render vertex by its owner (render_normals), or not at all (both null: positions only).
+// Positions only, each stage runs the variant its own home has: sample_batch with jacobian ==
+// null (values only) and fit_patch_lanes with out_n == null (geometry only), both bitwise the
+// full variant's values (test_cpu_lanes.cpp), so the positions are bitwise the same
+// (PositionsOnlyMatchesEvaluateBitwise, test_cpu_evaluator.cpp).
 StageTimes CpuEvaluator::run(const float* D, float* positions, float* corner_normals, float* render_normals) {
   using Clock = std::chrono::steady_clock;
+  const bool normals = corner_normals || render_normals;
   const PlanView pv = host_view(*plan_);
   FrameView fv{sample_value_.data(), sample_jacobian_.data(), edge_control_.data(),
-               patch_control_.data(), patch_normal_.data(), positions, corner_normals};
+               patch_control_.data(), normals ? patch_normal_.data() : nullptr, positions, corner_normals};
   StageTimes times;
   auto t0 = Clock::now();
   auto lap = [&](const char* name) {
@@ -107,64 +116,34 @@ StageTimes CpuEvaluator::run(const float* D, float* positions, float* corner_nor
     times.emplace_back(name, std::chrono::duration<double, std::milli>(t1 - t0).count());
     t0 = t1;
   };
+  // Without normals the geometry reads Jacobians at the edge ends only (adjust_edge), i.e. at
+  // the sub-vertex samples, numbered [0, sub_vertices) (plan.cpp): a batch holding one of them
+  // runs with Jacobians, every other batch values only. Batches keep plan order within a
+  // lattice box, so the sub-vertices fill batches of their own, and at most one batch a box
+  // is mixed.
+  const int jacobian_below = normals ? INT_MAX : pv.sub_vertices;
   const CpuFrameKernels& k = *kernels_;
   parallel_for(batches_.count(), threads_, [&](long long b, long long e) {
-    k.sample(pv, D, batches_, b, e, fv.sample_value, fv.sample_jacobian, INT_MAX);
+    k.sample(pv, D, batches_, b, e, fv.sample_value, fv.sample_jacobian, jacobian_below);
   });
   lap("sampling");
   parallel_for(pv.edges, threads_, [&](long long b, long long e) { k.adjust_edges(pv, fv, b, e); });
   lap("edge_adjustment");
   parallel_for(pv.patches, threads_, [&](long long b, long long e) {
-    k.fit_patches(pv, fv, fit_columns_, b, e);
+    k.fit_patches(pv, fv, fit_columns_, b, e);  // geometry only when fv.patch_normal is null
   });
   lap("fitting");
   tessellate_positions(pv, fv);
   lap("tessellate_positions");
+  if (!normals) return times;
   parallel_for(pv.patches, threads_, [&](long long b, long long e) {
-    std::vector<float> normals(3 * (size_t)grid_lanes_.padded);
+    std::vector<float> scratch(3 * (size_t)grid_lanes_.padded);
     if (render_normals)
-      k.tessellate_render_normals(pv, fv, grid_lanes_, render_owned_, b, e, normals.data(), render_normals);
+      k.tessellate_render_normals(pv, fv, grid_lanes_, render_owned_, b, e, scratch.data(), render_normals);
     else
-      k.tessellate_normals(pv, fv, grid_lanes_, b, e, normals.data());
+      k.tessellate_normals(pv, fv, grid_lanes_, b, e, scratch.data());
   });
   lap("tessellate_normals");
-  return times;
-}
-
-// evaluate() without the normal half, each stage with the variant its own home already has:
-// sample_batch with jacobian == null (values only) and fit_patch_lanes with out_n == null
-// (geometry only), both bitwise the full variant's values (test_cpu_lanes.cpp). Kept a
-// separate method: when evaluate's stages change, this one must follow, or
-// PositionsOnlyMatchesEvaluateBitwise (test_cpu_evaluator.cpp) fails.
-StageTimes CpuEvaluator::evaluate_positions(const float* D, float* positions) {
-  using Clock = std::chrono::steady_clock;
-  const PlanView pv = host_view(*plan_);
-  FrameView fv{sample_value_.data(), sample_jacobian_.data(), edge_control_.data(),
-               patch_control_.data(), nullptr, positions, nullptr};
-  StageTimes times;
-  auto t0 = Clock::now();
-  auto lap = [&](const char* name) {
-    auto t1 = Clock::now();
-    times.emplace_back(name, std::chrono::duration<double, std::milli>(t1 - t0).count());
-    t0 = t1;
-  };
-  // The geometry reads Jacobians at the edge ends only (adjust_edge), i.e. at the sub-vertex
-  // samples, numbered [0, sub_vertices) (plan.cpp). A batch holding one of them runs with
-  // Jacobians, every other batch values only. Batches keep plan order within a lattice box,
-  // so the sub-vertices fill batches of their own, and at most one batch a box is mixed.
-  const CpuFrameKernels& k = *kernels_;
-  parallel_for(batches_.count(), threads_, [&](long long b, long long e) {
-    k.sample(pv, D, batches_, b, e, fv.sample_value, fv.sample_jacobian, pv.sub_vertices);
-  });
-  lap("sampling");
-  parallel_for(pv.edges, threads_, [&](long long b, long long e) { k.adjust_edges(pv, fv, b, e); });
-  lap("edge_adjustment");
-  parallel_for(pv.patches, threads_, [&](long long b, long long e) {
-    k.fit_patches(pv, fv, fit_columns_, b, e);  // fv.patch_normal is null: geometry only
-  });
-  lap("fitting");
-  tessellate_positions(pv, fv);
-  lap("tessellate_positions");
   return times;
 }
 

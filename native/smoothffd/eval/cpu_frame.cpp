@@ -33,22 +33,30 @@ void fit_patches(const PlanView& pv, const FrameView& fv, const FitColumns& fc, 
                     fv.patch_normal ? fv.patch_normal + 30 * p : nullptr);
 }
 
-void tessellate_positions(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb,
-                          const OwnedPoints& ov, long long b, long long e, float* points) {
-  const int P = gb.padded;
-  const int* start = ov.start.data();
-  const int* pairs = ov.pairs.data();
+// For each patch of [b, e) that owns points: its grid values (grid(p, scratch): padded x 3,
+// SoA) written to out at the indices it owns.
+template <class Grid>
+void write_owned(const OwnedPoints& owned, int padded, long long b, long long e, float* scratch,
+                 float* out, Grid grid) {
+  const int* start = owned.start.data();
+  const int* pairs = owned.pairs.data();
   for (long long p = b; p < e; ++p) {
     if (start[p] == start[p + 1]) continue;
-    patch_grid_points(pv, fv, gb, (int)p, points);
+    grid((int)p, scratch);
     for (int i = start[p]; i < start[p + 1]; ++i) {
       const int g = pairs[2 * i];
-      float* out = fv.positions + 3 * (size_t)pairs[2 * i + 1];
-      out[0] = points[g];
-      out[1] = points[P + g];
-      out[2] = points[2 * P + g];
+      float* o = out + 3 * (size_t)pairs[2 * i + 1];
+      o[0] = scratch[g];
+      o[1] = scratch[padded + g];
+      o[2] = scratch[2 * padded + g];
     }
   }
+}
+
+void tessellate_positions(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb,
+                          const OwnedPoints& ov, long long b, long long e, float* points) {
+  write_owned(ov, gb.padded, b, e, points, fv.positions,
+              [&](int p, float* s) { patch_grid_points(pv, fv, gb, p, s); });
 }
 
 void tessellate_normals(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb,
@@ -70,20 +78,8 @@ void tessellate_normals(const PlanView& pv, const FrameView& fv, const GridBasis
 void tessellate_render_normals(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb,
                                const OwnedPoints& rv, long long b, long long e, float* normals,
                                float* render_normals) {
-  const int P = gb.padded;
-  const int* start = rv.start.data();
-  const int* pairs = rv.pairs.data();
-  for (long long p = b; p < e; ++p) {
-    if (start[p] == start[p + 1]) continue;
-    patch_grid_normals(pv, fv, gb, (int)p, normals);
-    for (int i = start[p]; i < start[p + 1]; ++i) {
-      const int g = pairs[2 * i];
-      float* out = render_normals + 3 * (size_t)pairs[2 * i + 1];
-      out[0] = normals[g];
-      out[1] = normals[P + g];
-      out[2] = normals[2 * P + g];
-    }
-  }
+  write_owned(rv, gb.padded, b, e, normals, render_normals,
+              [&](int p, float* s) { patch_grid_normals(pv, fv, gb, p, s); });
 }
 
 }  // namespace

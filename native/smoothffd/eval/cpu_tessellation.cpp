@@ -46,17 +46,25 @@ OwnedPoints owned_render_vertices(const Plan& plan) {
 
 SFFD_ISA_BEGIN  // per-frame part: one copy per ISA (core/isa.hpp)
 
+namespace {
+// eval_cubic on lanes: the cubic patch cp (10 x 3 control points) at grid points g0.. g0 + kLanes.
+void cubic_on_lanes(const float* cp, const GridBasisLanes& gb, int g0, Lanes x[3]) {
+  x[0] = x[1] = x[2] = 0.0f;
+  for (int k = 0; k < 10; ++k) {
+    Lanes b;
+    for (int l = 0; l < kLanes; ++l) b.set(l, gb.basis[(size_t)k * gb.padded + g0 + l]);
+    for (int r = 0; r < 3; ++r) x[r] += b * cp[3 * k + r];
+  }
+}
+}  // namespace
+
 void patch_grid_points(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb, int p,
                        float* points) {
   const float* cp = fv.patch_control + 30 * (long long)p;
   const int P = gb.padded;
   for (int g0 = 0; g0 < pv.grid; g0 += kLanes) {
-    Lanes x[3] = {0.0f, 0.0f, 0.0f};
-    for (int k = 0; k < 10; ++k) {  // eval_cubic on lanes
-      Lanes b;
-      for (int l = 0; l < kLanes; ++l) b.set(l, gb.basis[(size_t)k * P + g0 + l]);
-      for (int r = 0; r < 3; ++r) x[r] += b * cp[3 * k + r];
-    }
+    Lanes x[3];
+    cubic_on_lanes(cp, gb, g0, x);
     for (int r = 0; r < 3; ++r)
       for (int l = 0; l < kLanes; ++l) points[r * P + g0 + l] = x[r][l];
   }
@@ -67,12 +75,8 @@ void patch_grid_normals(const PlanView& pv, const FrameView& fv, const GridBasis
   const float* cp = fv.patch_normal + 30 * (long long)p;
   const int P = gb.padded;
   for (int g0 = 0; g0 < pv.grid; g0 += kLanes) {
-    Lanes n[3] = {0.0f, 0.0f, 0.0f};
-    for (int k = 0; k < 10; ++k) {  // eval_cubic on lanes
-      Lanes b;
-      for (int l = 0; l < kLanes; ++l) b.set(l, gb.basis[(size_t)k * P + g0 + l]);
-      for (int r = 0; r < 3; ++r) n[r] += b * cp[3 * k + r];
-    }
+    Lanes n[3];
+    cubic_on_lanes(cp, gb, g0, n);
     Lanes l2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
     Lanes inv = Lanes(1.0f) / sqrt(l2);
     for (int l = 0; l < kLanes; ++l) {

@@ -6,6 +6,8 @@
 #include <map>
 #include <tuple>
 
+#include "smoothffd/core/cancel.hpp"
+
 namespace sffd {
 namespace {
 
@@ -244,7 +246,9 @@ ClipResult clip_to_knot_boxes(const std::vector<double>& X, const std::vector<in
     for (int v = 0; v < V; ++v) c.set_snap(v, 0.0, kClipEdgeSnap * std::sqrt(longest[v]));
   }
   std::vector<Poly> polys, next;
+  CancelPoller poller(1024);
   for (int t = 0; t < T; ++t) {
+    poller.tick();
     polys.assign(1, Poly(3));
     for (int k = 0; k < 3; ++k) {
       polys[0][k].id = tv[3 * t + k];
@@ -261,6 +265,7 @@ ClipResult clip_to_knot_boxes(const std::vector<double>& X, const std::vector<in
         double v = planes[a][pi];
         if (!(v > lo && v < hi)) continue;  // split() decides, with each vertex's snap
         next.clear();
+        poller.tick();
         for (const Poly& p : polys) c.split(p, a, pi, v, t, next);
         polys.swap(next);
         clipped = true;
@@ -277,7 +282,10 @@ ClipResult clip_to_knot_boxes(const std::vector<double>& X, const std::vector<in
     double nrm[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
     double l = std::sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
     for (double& x : nrm) x = l > 0 ? x / l : 0.0;
-    for (const Poly& p : polys) c.triangulate(p, nrm, t);
+    for (const Poly& p : polys) {
+      poller.tick();
+      c.triangulate(p, nrm, t);
+    }
   }
   return out;
 }

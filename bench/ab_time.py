@@ -19,7 +19,6 @@ import sys
 import numpy as np
 
 import smoothffd  # noqa: E402  (first: bench_gpu puts this tree's python/ first on the path)
-from smoothffd import _core  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import bench_gpu  # noqa: E402
@@ -36,9 +35,8 @@ P, F, N = bench_gpu.torus(167, 140)
 lat = bench_gpu.lattice_for(P, np.random.default_rng(2015), degree=(args.degree,) * 3)
 mesh = smoothffd.Mesh(P, F, corner_normals=N[F.reshape(-1)])
 plan = smoothffd.Deformer(mesh, lat, level=args.level, device="cpu").plan
-ev = _core.CudaEvaluator(plan, args.path, shared_memory_limit=args.limit)
-kernel = getattr(ev, "kernel", getattr(ev, "fused_kernel", "?"))
-b = bench_gpu.benchmark(ev, plan, args.path, args.limit, bench_gpu.values(lat), args.iters)
+b = bench_gpu.benchmark(plan, args.path, args.limit, bench_gpu.values(lat), args.iters)
+kernel = b["kernel"]
 print(json.dumps(dict(label=args.label, module=os.path.dirname(smoothffd.__file__), level=args.level,
                       path=args.path, limit=args.limit, degree=args.degree, kernel=kernel,
                       events=b["total_events"], queued=b.get("total_events_queued", float("nan")),

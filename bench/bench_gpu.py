@@ -59,14 +59,41 @@ def benchmark(plan, path, limit, vals, iters):
         b = ev.benchmark(vals, iters)
         b["kernel"] = ev.fused_kernel if path == "fused" else "cublas"
         return b
-    return bench_module().benchmark(plan, vals, iters, path=path, shared_memory_limit=limit)
+    try:
+        module = bench_module()
+    except ImportError:  # an installed wheel: the public evaluator's stage events only
+        return public_timing(plan, path, limit, vals, iters)
+    return module.benchmark(plan, vals, iters, path=path, shared_memory_limit=limit)
+
+
+def public_timing(plan, path, limit, vals, iters):
+    """Without bench/native (an installed package): medians of CudaEvaluator.evaluate_device's
+    per-stage CUDA events; the queued, graph and floor measures are the harness's (NaN here)."""
+    ev = _core.CudaEvaluator(plan, path, shared_memory_limit=limit)
+    for _ in range(5):
+        ev.evaluate_device(vals)
+    runs = [ev.evaluate_device(vals) for _ in range(iters)]
+    b = {k: float(np.median([r[k] for r in runs])) for k in runs[0]}
+    b["total_events"] = b.pop("device_total")
+    for key in ("total_events_queued", "total_graph", "d2d_copy_ms", "d2d_bandwidth_GBps", "floor_ms"):
+        b[key] = float("nan")
+    b["output_bytes"] = float(ev.output_bytes)
+    b["kernel"] = ev.kernel
+    return b
 
 
 def bench_module():
     """bench/native's sffd_bench of the tree whose smoothffd is imported (a development build
-    puts it in that tree's bench/), else the first on the path."""
+    puts it in that tree's bench/); ImportError for an installed package, which has none (a
+    module built against another tree's _core must not take its plans)."""
     tree_bench = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(smoothffd.__file__)))),
                               "bench")
+    if "sffd_bench" in sys.modules:
+        return sys.modules["sffd_bench"]
+    found = [f for f in (os.listdir(tree_bench) if os.path.isdir(tree_bench) else [])
+             if f.startswith("sffd_bench.") and f.endswith(".so")]
+    if not found:
+        raise ImportError(f"no sffd_bench in {tree_bench} (bench/native is built by development builds)")
     sys.path.insert(0, tree_bench)
     try:
         import sffd_bench
@@ -225,6 +252,12 @@ def main():
     for L in (10, 12, 14, 16):
         if L not in plans:
             continue
+        if not hasattr(_core, "CudaUpsamplingBaseline"):
+            try:
+                bench_module()
+            except ImportError as e:
+                log(f"  baseline L={L}: skipped (bench/native's sffd_bench not built: {e})")
+                continue
         pts, nrm = pn_upsample(P, F, N, L)
         base = upsampling_baseline(plans[L], pts.astype(np.float32), nrm.astype(np.float32), pieces_of(lat, pts))
         bt = base.benchmark(values(lat), args.iters)

@@ -111,11 +111,11 @@ def main():
             compat.set_modifier_input(mod, "Exact Normals", True)
             obj.update_tag()
             bpy.context.view_layer.update()
-            res = modifier_update._states[(obj.name_full, mod.name)].result
+            res = modifier_update.state_of(obj, mod).result
             got = run(lat, obj, mod)
-            rv = modifier_update._states[(obj.name_full, mod.name)].deformer.plan.render_vertices()[0]
+            rv = modifier_update.state_of(obj, mod).deformer.plan.render_vertices()[0]
             scene = "sharp meridians" if sharp else "smooth"
-            chosen = modifier_update._layout(modifier_update._states[(obj.name_full, mod.name)]
+            chosen = modifier_update._layout(modifier_update.state_of(obj, mod)
                                              .deformer.plan)
             print(f"{scene}, level {level}: {len(res.triangles)} triangles, "
                   f"{len(res.positions)} vertices, {len(rv)} render vertices")

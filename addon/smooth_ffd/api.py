@@ -6,7 +6,7 @@
 """
 import bpy
 
-from . import compat, handlers, inputs, modifier_update, nodegroup
+from . import bake, compat, handlers, inputs, modifier_update, nodegroup
 
 
 def add_smooth_ffd(obj, lattice_obj=None, viewport_level=3, render_level=10, backend="auto",
@@ -28,11 +28,17 @@ def add_smooth_ffd(obj, lattice_obj=None, viewport_level=3, render_level=10, bac
     for key, value in values.items():
         compat.set_modifier_input(mod, key, value)
     modifier_update.result_object(obj, mod)
-    scene = bpy.context.scene
-    scene.render.use_lock_interface = True   # see handlers.on_load
+    # In a window, renders compute from the render thread: the one scene setting the add-on
+    # changes, and it says so (console, operator report, status; modifier_update).
+    lock_message[0] = modifier_update.ensure_render_lock(bpy.context.scene)
     obj.update_tag()
     update(obj, mod)
     return mod
+
+
+# What the last add_smooth_ffd said about Render > Lock Interface (None: nothing changed);
+# the Add operator reports it.
+lock_message = [None]
 
 
 def smooth_ffd_modifiers(obj):
@@ -46,13 +52,50 @@ def update(obj=None, mod=None, render=False, force=False):
     if obj is None:
         handlers.update_all(depsgraph=depsgraph, render=render, force=force)
     else:
+        frame = modifier_update.scene_frame()
         for m in ([mod] if mod is not None else smooth_ffd_modifiers(obj)):
+            if handlers.in_bake(m, frame):   # the group shows the bake here: nothing to do
+                handlers._baked_status(obj, m, bpy.context.scene)
+                continue
             modifier_update.update_modifier(obj, m, depsgraph, render=render, force=force)
     handlers.guarded(depsgraph.update)
 
 
 def status(mod):
     return compat.get_modifier_input(mod, "Status")
+
+
+def bake_smooth_ffd(obj, mod=None, frame_start=None, frame_end=None):
+    """Bakes frames frame_start..frame_end (default: the scene's range) at the render level
+    into the file (bake.py): Blender without the add-on then renders those frames right.
+    Inside the range the modifier shows the bake, also with the add-on, until
+    clear_bake(obj, mod). Returns the number of distinct meshes stored. Raises RuntimeError
+    (nothing baked) when a frame has no valid result."""
+    mod = _one(obj, mod)
+    scene = bpy.context.scene
+    host = bake.bake(obj, mod, scene.frame_start if frame_start is None else frame_start,
+                     scene.frame_end if frame_end is None else frame_end, scene)
+    return len({n.inputs["Object"].default_value for n in host.modifiers[0].node_group.nodes
+                if n.bl_idname == 'GeometryNodeObjectInfo'})
+
+
+def clear_bake(obj, mod=None):
+    """Removes the bake of a modifier (or of each of the object's); the modifier computes
+    live again on those frames. Returns whether there was one."""
+    mods = [mod] if mod is not None else smooth_ffd_modifiers(obj)
+    had = [bake.clear(obj, m) for m in mods]
+    if any(had):
+        update(obj)
+    return any(had)
+
+
+def _one(obj, mod):
+    if mod is not None:
+        return mod
+    mods = smooth_ffd_modifiers(obj)
+    if not mods:
+        raise ValueError(f"{obj.name!r} has no Smooth FFD modifier")
+    return mods[0]
 
 
 def apply_smooth_ffd(obj, mod):
@@ -67,6 +110,7 @@ def apply_smooth_ffd(obj, mod):
         if not modifier_update.update_modifier(obj, mod, depsgraph, render=True, force=True):
             raise RuntimeError(f"Smooth FFD cannot be applied: {status(mod)}")
         ro = modifier_update.result_object(obj, mod, create=False)
+        host = bake.bake_object(mod)
         depsgraph.update()
         if obj.data.users > 1:
             # Blender refuses to apply to shared data; the other users keep the original mesh.
@@ -77,8 +121,11 @@ def apply_smooth_ffd(obj, mod):
             result = bpy.ops.object.modifier_apply(modifier=name)
         if 'FINISHED' not in result:
             raise RuntimeError(f"applying {name!r} failed: {result}")
+        # its plan can be hundreds of MB at the render level
+        modifier_update.forget(ro=ro)
         _delete_result(ro)
-        modifier_update.forget(obj, name)   # its plan can be hundreds of MB at the render level
+        if host is not None and host.users == 0:
+            bake.remove_host(host)
     return obj.data
 
 
@@ -86,6 +133,7 @@ def remove_smooth_ffd(obj, mod):
     """Removes the modifier; the object shows its (never modified) source mesh again."""
     ro = modifier_update.result_object(obj, mod, create=False)
     modifier_update.forget(obj, mod)
+    bake.clear(obj, mod)
     obj.modifiers.remove(mod)
     _delete_result(ro)
 

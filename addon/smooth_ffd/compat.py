@@ -25,6 +25,10 @@ HAS_MODIFIER_PROPERTIES = VERSION >= (5, 2)
 # Switch node it feeds; the modifier stores the chosen item's number (an int ID property whose
 # UI data lists the items).
 HAS_MENU_SOCKET = VERSION >= (4, 1)
+# The Warning node (a message in the modifier panel, no Python needed): in 4.5 and 5.x here,
+# not in 4.2; tested by the type itself rather than a version (getattr: the unit tests' fake
+# bpy has no types).
+HAS_WARNING_NODE = hasattr(getattr(bpy, "types", None), "GeometryNodeWarning")
 # Attributes for sharp edges / flat faces replaced the MeshEdge/MeshPolygon flags.
 HAS_SHARP_EDGE_ATTRIBUTE = VERSION >= (3, 5)
 HAS_SHARP_FACE_ATTRIBUTE = VERSION >= (3, 6)

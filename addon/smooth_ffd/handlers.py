@@ -4,14 +4,18 @@ Writing the result mesh tags the depsgraph, which fires depsgraph_update_post ag
 stops that re-entry, and update_modifier skips work when its inputs have not changed.
 """
 import contextlib
+import threading
 
 import bpy
 from bpy.app.handlers import persistent
 
-from . import modifier_update, nodegroup
+from . import bake, compat, modifier_update, nodegroup
 
 _busy = False
 _rendering = False
+# Lattices seen with a user besides Smooth FFD inputs this session (as_pointer): one that
+# later has none was deleted (release_deleted_lattices).
+_wanted_lattices = set()
 
 
 def smooth_ffd_modifiers(scene=None):
@@ -28,7 +32,12 @@ def smooth_ffd_modifiers(scene=None):
 
 
 def update_all(scene=None, depsgraph=None, render=None, changed_meshes=None, force=False):
-    """Updates all Smooth FFD modifiers; returns how many wrote new geometry."""
+    """Updates all Smooth FFD modifiers; returns how many wrote new geometry.
+
+    Skipped: modifiers whose bake covers this frame (the group shows the bake), and in the
+    viewport, objects the view layer does not show (hidden with H, in an excluded or hidden
+    collection) unless something shown uses them (_needed): they are brought up to date by
+    the depsgraph update that shows them again."""
     global _busy
     if _busy:
         return 0
@@ -36,21 +45,157 @@ def update_all(scene=None, depsgraph=None, render=None, changed_meshes=None, for
     try:
         if scene is None:
             scene = bpy.context.scene
+        render = _rendering if render is None else render
+        if not _may_write(scene):
+            return 0
         if depsgraph is None:
             depsgraph = bpy.context.evaluated_depsgraph_get()
-        render = _rendering if render is None else render
+        release_deleted_lattices()
+        frame = modifier_update.scene_frame(scene)
+        view_layer = getattr(depsgraph, "view_layer", None) or bpy.context.view_layer
         count = 0
+        hidden = []
         for obj, mod in smooth_ffd_modifiers(scene):
             if not (mod.show_render if render else mod.show_viewport):
+                continue
+            if in_bake(mod, frame):
+                _baked_status(obj, mod, scene)
+                continue
+            if not render and not force and not _shown(obj, view_layer):
+                hidden.append((obj, mod))
                 continue
             # The object itself is re-evaluated whenever its lattice moves; only an update
             # of its mesh data means the source changed.
             mesh_changed = changed_meshes is None or obj.data in changed_meshes
             count += modifier_update.update_modifier(obj, mod, depsgraph, render=render,
-                                            mesh_changed=mesh_changed, force=force)
+                                                     mesh_changed=mesh_changed, force=force,
+                                                     scene=scene)
+        if hidden:
+            needed = _needed([obj for obj, _ in hidden])
+            for obj, mod in hidden:
+                if obj in needed:
+                    mesh_changed = changed_meshes is None or obj.data in changed_meshes
+                    count += modifier_update.update_modifier(
+                        obj, mod, depsgraph, render=render, mesh_changed=mesh_changed,
+                        scene=scene)
+                else:
+                    skipped_hidden[0] += 1
         return count
     finally:
         _busy = False
+
+
+# How many viewport updates skipped a hidden object (tests read it).
+skipped_hidden = [0]
+
+
+def _shown(obj, view_layer):
+    try:
+        return obj.visible_get(view_layer=view_layer)
+    except (TypeError, RuntimeError):   # an object not in this view layer
+        return False
+
+
+def _needed(objects):
+    """The hidden objects among `objects` that something shown may still use: another ID
+    refers to them (a Boolean or Object Info input, a parent, a constraint: anything but the
+    collections holding them), or one of those collections is instanced (a collection
+    instance shows its objects even where the view layer hides or excludes them). Blender
+    reports non-refcounted references too (bpy.data.user_map), so a hidden Boolean cutter is
+    kept up to date. Run only when hidden objects exist, once per update."""
+    users = bpy.data.user_map(subset=set(objects))
+    instanced = _instanced_collections()
+    needed = set()
+    for obj in objects:
+        refs = users.get(obj, ())
+        if any(not isinstance(u, bpy.types.Collection) and u != obj and
+               not isinstance(u, bpy.types.Scene) for u in refs) \
+                or any(c in instanced for c in obj.users_collection):
+            needed.add(obj)
+    return needed
+
+
+def _instanced_collections():
+    """Collections shown through a collection instance, with every collection inside them."""
+    out = set()
+    stack = [c for c in bpy.data.collections if c.users_dupli_group]
+    while stack:
+        c = stack.pop()
+        if c not in out:
+            out.add(c)
+            stack.extend(c.children)
+    return out
+
+
+def in_bake(mod, frame):
+    lo, hi = modifier_update.get_frames(mod, "Bake")
+    return lo <= frame < hi
+
+
+def _baked_status(obj, mod, scene):
+    text = bake.status_text(mod)
+    notes = modifier_update.lock_notes(scene)
+    text += "".join(f" \u2014 {n}" for n in notes)
+    modifier_update.set_status(obj, mod, text, report=False)
+
+
+def _may_write(scene):
+    """A render started from a window calls the handlers from its job thread: writing data
+    there is safe only with the interface locked. Without the lock the add-on leaves the
+    data alone (the group then renders the viewport result on its own frame and the source
+    mesh elsewhere) and says so on the console."""
+    if threading.current_thread() is threading.main_thread() or \
+            scene.render.use_lock_interface:
+        return True
+    print(f"Smooth FFD: not computed for this render (frame {scene.frame_current}): Render > "
+          f"Lock Interface is off in scene {scene.name!r}, and the add-on writes no data from "
+          f"the render thread without it; frames without a result render the source mesh")
+    return False
+
+
+def release_deleted_lattices():
+    """Lets go of lattices the user deleted, as Blender's Lattice modifier does.
+
+    The modifier's Lattice input is an ID property, which holds a user: a lattice deleted in
+    the viewport (X) left every collection but stayed in the file, still deforming (Blender
+    frees a deleted object only once nothing holds a user of it). A lattice that had another
+    user this session (a collection holding it, a fake user, another ID property) and now
+    has none but Smooth FFD inputs is taken out of those inputs and removed, which is what
+    deleting it would have done without the add-on: pointers that hold no user (a Lattice
+    modifier, a hook) are cleared too. The modifier shows the source, and its status says the
+    lattice was deleted. Undo brings both back. on_load applies the same rule to files saved
+    with such a lattice. A lattice that never had another user (made by a script, never
+    linked) is left alone, as Blender leaves it."""
+    refs = {}
+    for _obj, mod in smooth_ffd_modifiers():
+        try:
+            lat = compat.get_modifier_input(mod, "Lattice")
+        except KeyError:
+            continue
+        if lat is not None:
+            refs.setdefault(lat, []).append((_obj, mod))
+    for lat, users in refs.items():
+        key = lat.as_pointer()
+        # Every collection holding the lattice, a fake user or any other ID property holds a
+        # user of it: more users than these inputs means it is still wanted (cheaper than
+        # asking for its collections on every update).
+        if lat.users > len(users):
+            _wanted_lattices.add(key)
+            continue
+        if key not in _wanted_lattices:
+            continue
+        _wanted_lattices.discard(key)
+        for obj, mod in users:
+            compat.set_modifier_input(mod, "Lattice", None)
+            ro = modifier_update.result_object(obj, mod, create=False)
+            if ro is not None:   # the error message says why, also after a reload
+                st = modifier_update._state(ro)
+                st.lattice_gone = lat.name
+                st.last_key = st.status_base = None
+            modifier_update.set_status(
+                obj, mod, f"Error: no lattice object set (the lattice object {lat.name!r} was "
+                          f"deleted)", modifier_update.nodegroup.NEVER, report=False)
+        bpy.data.objects.remove(lat)
 
 
 @contextlib.contextmanager
@@ -91,9 +236,11 @@ def on_depsgraph_update_pre(scene, depsgraph=None):
         return
     _busy = True
     try:
+        frame = modifier_update.scene_frame(scene)
+        view_layer = bpy.context.view_layer
         for obj, mod in smooth_ffd_modifiers(scene):
-            if mod.show_viewport:
-                modifier_update.update_modifier(obj, mod, None, early=True)
+            if mod.show_viewport and not in_bake(mod, frame) and _shown(obj, view_layer):
+                modifier_update.update_modifier(obj, mod, None, early=True, scene=scene)
     finally:
         _busy = False
 
@@ -115,12 +262,19 @@ def on_frame_change(scene, depsgraph=None):
 @persistent
 def on_load(*_args):
     modifier_update.forget()   # in-memory plans belong to the previous file
+    _wanted_lattices.clear()
     for _obj, mod in smooth_ffd_modifiers():
-        nodegroup.migrate(mod)   # 3.4-4.0's text Backend -> 4.1+'s menu
+        nodegroup.migrate(mod)   # older layouts -> this Blender's (menu, frame ranges)
+        # A lattice saved in no collection was kept only by Smooth FFD inputs (older add-ons
+        # held deleted lattices): count it as wanted once, so that it is let go of.
+        try:
+            lat = compat.get_modifier_input(mod, "Lattice")
+        except KeyError:
+            continue
+        if lat is not None and not lat.users_collection:
+            _wanted_lattices.add(lat.as_pointer())
     scene = bpy.context.scene
     if scene is not None and smooth_ffd_modifiers(scene):
-        # Frame handlers may run on the render thread; the lock keeps the UI from racing it.
-        scene.render.use_lock_interface = True
         update_all(scene)
 
 
@@ -133,8 +287,6 @@ def on_undo_redo(scene, *_args):
 def on_render_pre(scene, *_args):
     global _rendering
     _rendering = True
-    if smooth_ffd_modifiers(scene):
-        scene.render.use_lock_interface = True
     # Final renders use the render level and exact normals; the frame is already set here.
     update_all(scene, render=True)
 

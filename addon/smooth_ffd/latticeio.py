@@ -58,7 +58,7 @@ def world_matrix(obj, depsgraph):
 
 # --- reading before evaluation (depsgraph_update_pre) --------------------------------------
 
-def _animated(id_data):
+def animated(id_data):
     """Whether animation or drivers may change id_data's properties on evaluation."""
     ad = getattr(id_data, "animation_data", None)
     return ad is not None and (ad.action is not None or len(ad.drivers) > 0
@@ -70,7 +70,7 @@ def evaluates_to_original(lattice_obj):
     no lattice modifiers (hooks), shape keys or animated points."""
     data = lattice_obj.data
     return (len(lattice_obj.modifiers) == 0 and data.shape_keys is None
-            and not _animated(data))
+            and not animated(data))
 
 
 def basis_matrix(obj):
@@ -78,7 +78,7 @@ def basis_matrix(obj):
     just the object's own loc/rot/scale (Blender computes both with the same function, so
     they are bitwise equal); None when a parent, constraint, animation or rigid body may
     change it."""
-    if obj.parent is not None or len(obj.constraints) > 0 or _animated(obj) \
+    if obj.parent is not None or len(obj.constraints) > 0 or animated(obj) \
             or getattr(obj, "rigid_body", None) is not None:
         return None
     return np.array(obj.matrix_basis, dtype=np.float64)

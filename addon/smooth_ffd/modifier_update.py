@@ -2,6 +2,7 @@
 its plan, cached per modifier, when only the lattice points moved) and writes the hidden
 result mesh; also the modifier's status line and its result object."""
 import time
+import uuid
 
 import bpy
 import numpy as np
@@ -10,6 +11,7 @@ from . import carry, compat, core, inputs, latticeio, meshio, nodegroup
 
 OWNER_KEY = "smooth_ffd_owner"          # result object -> source object's name_full (a string)
 MODIFIER_KEY = "smooth_ffd_modifier"    # result object -> modifier name
+UID_KEY = "smooth_ffd_uid"              # result object -> its modifier's in-memory state key
 TOPOLOGY_KEY = "smooth_ffd_topology"    # result mesh -> plan that built its topology
 NORMALS_KEY = "smooth_ffd_normals"      # result mesh -> "exact" or "fast"
 EXTRAS_KEY = "smooth_ffd_extras"        # result mesh -> topology + carried UV maps / groups
@@ -27,15 +29,32 @@ class _State:
         self.result = None        # the last core Result: its arrays are reused (out=)
         self.scratch = (None, {})  # (plan_key, meshio.write_normals' per-plan facts, buffers)
         self.outs = {}            # layout -> the last result in it (out=; LAYOUT may change)
-        self.status_base = None   # last "OK ..." status, without the stack warning
+        self.status_base = None   # last "OK ..." status as (head, tail) (_set_ok_status)
         self.above = 0            # enabled modifiers above this one, as last reported
+        self.lattice_gone = None  # a deleted lattice's name (handlers.release_deleted_lattices)
 
 
 _states = {}
 
 
-def _state(obj, mod):
-    key = (obj.name_full, mod.name)
+def uid(ro):
+    """The key of the state belonging to the result object ro, which belongs to one
+    modifier: a random id stored on ro, so renaming the object or the modifier keeps the
+    plan and the result (before, the key was their names, and a rename replanned)."""
+    key = ro.get(UID_KEY)
+    if not isinstance(key, str):
+        key = ro[UID_KEY] = uuid.uuid4().hex
+    return key
+
+
+def state_of(obj, mod):
+    """The in-memory state of a modifier (None when it has no result object yet)."""
+    ro = result_object(obj, mod, create=False)
+    return _states.get(uid(ro)) if ro is not None else None
+
+
+def _state(ro):
+    key = uid(ro)
     st = _states.get(key)
     if st is None:
         st = _states[key] = _State()
@@ -49,15 +68,18 @@ def invalidate_sources():
         st.source = None
 
 
-def forget(obj=None, mod=None):
-    """Drops the in-memory state (plan, source) of one modifier, or of all.
-    mod: the modifier or its name (after Apply the modifier itself is freed)."""
-    if obj is None:
+def forget(obj=None, mod=None, ro=None):
+    """Drops the in-memory state (plan, source) of one modifier, or of all. ro: the
+    modifier's result object, when the modifier is already gone (Apply frees it)."""
+    if obj is None and ro is None:
         _states.clear()
-    else:
-        name = mod if isinstance(mod, str) else mod.name
-        _states.pop((obj.name_full, name), None)
-        _last_timing.pop((obj.name_full, name), None)
+        _last_timing.clear()
+        return
+    if ro is None:
+        ro = result_object(obj, mod, create=False)
+    if ro is not None:
+        _states.pop(uid(ro), None)
+        _last_timing.pop(uid(ro), None)
 
 
 class Settings:
@@ -80,8 +102,7 @@ def result_object(obj, mod, create=True):
     at the original's result, so it gets its own here instead of overwriting that one.
     """
     ro = compat.get_modifier_input(mod, "Result Object")
-    if ro is not None and ro.type == 'MESH' and ro.get(MODIFIER_KEY) == mod.name \
-            and _owned_by(ro, obj):
+    if ro is not None and ro.type == 'MESH' and _owned_by(ro, obj, mod):
         return ro
     if not create:
         return None
@@ -90,18 +111,22 @@ def result_object(obj, mod, create=True):
     ro = bpy.data.objects.new(name, me)   # never linked to a scene: hidden, yet saved (mod uses it)
     ro[OWNER_KEY] = obj.name_full
     ro[MODIFIER_KEY] = mod.name
+    uid(ro)
     compat.set_modifier_input(mod, "Result Object", ro)
     return ro
 
 
-def _owned_by(ro, obj):
-    """Whether ro is obj's own result (not the original's, reached through a duplicate).
+def _owned_by(ro, obj, mod):
+    """Whether ro is this modifier's own result (not the original's, reached through a
+    duplicated object or a copied modifier).
 
     The owner is kept by name, not as an ID pointer: a pointer is a user of the object, and
     with the modifier pointing back at the result the two kept each other alive, so an
     object deleted in the UI (bpy.ops.object.delete) stayed in the file, unlinked, with its
     result (found by tests/blender/check_robustness.py). Only this modifier uses ro: it is
-    ours (also after a rename, recorded here). Shared (a duplicate): the owner's name decides.
+    ours, whatever the object and the modifier are called now (a rename keeps the result and,
+    through uid, the plan; the names recorded are brought up to date). Shared (a duplicate or
+    a copy): the recorded names decide, and the other one gets a result of its own.
     """
     owner = ro.get(OWNER_KEY)
     if isinstance(owner, bpy.types.ID):          # files saved before: a pointer, converted
@@ -111,27 +136,82 @@ def _owned_by(ro, obj):
     if ro.users <= 1:
         if owner != obj.name_full:
             ro[OWNER_KEY] = obj.name_full
+        if ro.get(MODIFIER_KEY) != mod.name:
+            ro[MODIFIER_KEY] = mod.name
         return True
-    return owner == obj.name_full
+    return owner == obj.name_full and ro.get(MODIFIER_KEY) == mod.name
 
 
-def set_status(obj, mod, text, ok, wrote_result=False):
-    """Writes status + validity only when they change, and re-tags the object for them.
+def set_status(obj, mod, text, frames=None, wrote_result=False, report=None):
+    """Writes the status and the frames the result belongs to (nodegroup: [from, to); None
+    leaves them; nodegroup.NEVER: no valid result, the source is shown) only when they
+    change, and re-tags the object for them.
 
     wrote_result: the result mesh was just written, which re-evaluates the object anyway
     (its modifier depends on the result object). Tagging the object too would tag its mesh
-    data on 3.4, and the post handler would then re-read the source mesh for nothing."""
+    data on 3.4, and the post handler would then re-read the source mesh for nothing.
+    report: print the text to the console (default: when no valid result is left)."""
     changed = False
     if compat.get_modifier_input(mod, "Status") != text:
         compat.set_modifier_input(mod, "Status", text)
         changed = not wrote_result
-    if bool(compat.get_modifier_input(mod, "Show Result")) != ok:
-        compat.set_modifier_input(mod, "Show Result", ok)
+    if frames is not None and set_frames(mod, "Result", frames):
         changed = True
     if changed:
         obj.update_tag()
-    if not ok:
+    if report if report is not None else frames == nodegroup.NEVER:
         print(f"Smooth FFD [{obj.name} / {mod.name}]: {text}")
+
+
+def _has_frames(mod):
+    return nodegroup.layout(mod.node_group) in nodegroup.FRAMES_LAYOUTS
+
+
+def get_frames(mod, which):
+    """(from, to) of the "Result" or "Bake" frame range. A group of an older layout (a file
+    not yet migrated, nodegroup.migrate) has no bake, and a validity flag for the result."""
+    if not _has_frames(mod):
+        if which == "Result" and compat.get_modifier_input(mod, "Show Result"):
+            return nodegroup.ALWAYS
+        return nodegroup.NEVER
+    return (float(compat.get_modifier_input(mod, f"{which} From")),
+            float(compat.get_modifier_input(mod, f"{which} To")))
+
+
+def set_frames(mod, which, frames):
+    """Writes a frame range when it differs; returns whether it did."""
+    frames = tuple(float(f) for f in frames)
+    if get_frames(mod, which) == frames:
+        return False
+    if not _has_frames(mod):
+        if which != "Result":
+            raise KeyError(f"the group of {mod.name!r} is of an older layout, without a bake")
+        compat.set_modifier_input(mod, "Show Result", frames != nodegroup.NEVER)
+        return True
+    compat.set_modifier_input(mod, f"{which} From", frames[0])
+    compat.set_modifier_input(mod, f"{which} To", frames[1])
+    return True
+
+
+def scene_frame(scene=None, depsgraph=None):
+    """The frame (with subframe and time remapping) a depsgraph evaluates: what the group's
+    Scene Time node compares with the frame ranges."""
+    if scene is None:
+        scene = depsgraph.scene if depsgraph is not None else bpy.context.scene
+    return float(scene.frame_current_final)
+
+
+def result_frames(obj, lattice_obj, frame):
+    """The frames a result computed at `frame` is right for: all of them when nothing it
+    depends on can change with time (no animation, drivers, parents, constraints, hooks or
+    shape keys on the lattice, the object or their data: the conditions of the early path),
+    else this frame only (half a frame either side, for motion blur's subframes)."""
+    static = (lattice_obj is not None and lattice_obj.type == 'LATTICE'
+              and latticeio.evaluates_to_original(lattice_obj)
+              and latticeio.basis_matrix(lattice_obj) is not None
+              and latticeio.basis_matrix(obj) is not None
+              and not latticeio.animated(obj.data))
+    return nodegroup.ALWAYS if static else (frame - 0.5, frame + 0.5)
 
 
 def _group_index(obj, settings):
@@ -173,7 +253,7 @@ def _source(obj, settings, st, mesh_changed):
 
 
 def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=False,
-                    early=False):
+                    early=False, scene=None):
     """Brings one modifier's result up to date; returns True when it wrote new geometry.
 
     Errors never propagate: they go to the status line and the console, and the modifier
@@ -183,21 +263,28 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
     _early_inputs): computes from the original data only where that provably equals what the
     evaluation will give, else does nothing; never reports errors (the post handler, which
     checks every input again against the evaluated data, does).
+    scene: the scene whose frame the result is for (default: the depsgraph's, else the
+    context's); the result's frame range (nodegroup) is written from it.
     """
-    st = _state(obj, mod)
+    st = None
     try:
+        ro = result_object(obj, mod, create=not early)
+        if ro is None:
+            return False
+        st = _state(ro)
         gathered = _early_inputs(obj, mod, st) if early else \
             _inputs(obj, mod, st, depsgraph, render, mesh_changed)
         if gathered is None:
             return False
         settings, level, backend, exact, lattice_data, l2o, source, key = gathered
-        ro = result_object(obj, mod, create=not early)
-        if ro is None:
-            return False
+        st.lattice_gone = None
+        frame = scene_frame(scene, depsgraph)
+        frames = result_frames(obj, settings.lattice, frame)
         above = modifiers_above(obj, mod, render)
         if not force and key == st.last_key and _result_matches(ro.data, st):
-            if above != st.above and st.status_base is not None:
-                _set_ok_status(obj, mod, st, st.status_base, above)
+            # Same inputs as the result holds: it is right for this frame too.
+            if st.status_base is not None:
+                _set_ok_status(obj, mod, st, st.status_base, above, frames, frame, scene=scene)
             return False
         rest, pts, interp = lattice_data
         t0 = time.perf_counter()
@@ -210,6 +297,7 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
             with _progress(len(source.corner_vertices) * level * level > 2_000_000):
                 st.deformer = core.make_deformer(source, lattice, level, backend)
             st.plan_key = plan_key
+            plans_built[0] += 1
         # out=: overwrite the previous update's arrays in place (no fresh pages each edit).
         # Without exact normals (3.4-4.4 viewport: Blender shades the dense mesh from its own
         # geometry, _write_result) the core computes positions only: the same positions in
@@ -224,11 +312,11 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
         t2 = time.perf_counter()
         st.last_key = key
         used = res.stats.get("device", backend) if isinstance(res.stats, dict) else backend
-        _set_ok_status(obj, mod, st, f"OK {used}, level {level}, {len(res.triangles)} tris, "
-                                     f"deform {1e3 * (t1 - t0):.1f} ms, write "
-                                     f"{1e3 * (t2 - t1):.1f} ms ({normals} normals)", above,
-                       wrote_result=True)
-        _last_timing[(obj.name_full, mod.name)] = {
+        tail = (f"{len(res.triangles)} tris, deform {1e3 * (t1 - t0):.1f} ms, "
+                f"write {1e3 * (t2 - t1):.1f} ms ({normals} normals)")
+        _set_ok_status(obj, mod, st, (f"OK {used}, level {level}", tail), above, frames, frame,
+                       wrote_result=True, scene=scene)
+        _last_timing[uid(ro)] = {
             "deform_ms": 1e3 * (t1 - t0), "write_ms": 1e3 * (t2 - t1), "normals": normals,
             "level": level, "triangles": len(res.triangles), "stats": res.stats,
             "early": early, **times}
@@ -242,8 +330,10 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
             # written here never matches the next key (or its topology token) and is redone.
             counters["early_errors"] += 1
             return False
-        _fail(obj, mod, st, str(e) if isinstance(e, inputs.SmoothFFDError)
-              else f"{type(e).__name__}: {e}")
+        message = str(e) if isinstance(e, inputs.SmoothFFDError) else f"{type(e).__name__}: {e}"
+        if st is not None and st.lattice_gone:
+            message += f" (the lattice object {st.lattice_gone!r} was deleted)"
+        _fail(obj, mod, st, message)
     return False
 
 
@@ -264,6 +354,8 @@ def _layout(plan):
 
 # How many results were computed, and where (tests and benchmarks read these).
 counters = {"computed": 0, "early": 0, "post": 0, "early_errors": 0}
+# How many plans were built (a rename must not build one: tests read it).
+plans_built = [0]
 # How the core was asked: with normals (exact normals: render, Apply, Exact Normals, 4.5+) or
 # positions only (viewport on 3.4-4.4). Apart from `counters`, whose exact contents tests compare.
 deform_calls = {"normals": 0, "positions_only": 0}
@@ -347,7 +439,8 @@ class _progress:
 
 
 def last_timing(obj, mod):
-    return _last_timing.get((obj.name_full, mod.name))
+    ro = result_object(obj, mod, create=False)
+    return _last_timing.get(uid(ro)) if ro is not None else None
 
 
 def modifiers_above(obj, mod, render=False):
@@ -367,20 +460,73 @@ def stack_warning(count):
             f"object's own mesh); move it first")
 
 
-def _set_ok_status(obj, mod, st, base, above, wrote_result=False):
+def _set_ok_status(obj, mod, st, base, above, frames, frame, wrote_result=False, scene=None):
+    """base: (head, tail) of the "OK ..." text; the frame goes between them when the result
+    belongs to this frame only (a file opened without the add-on then says which frame it
+    shows), the stack and scene warnings after."""
     st.status_base = base
     if above and above != st.above:   # once per change, not on every update
         print(f"Smooth FFD [{obj.name} / {mod.name}]: {stack_warning(above)}")
     st.above = above
-    set_status(obj, mod, f"{base} \u2014 {stack_warning(above)}" if above else base, True,
-               wrote_result=wrote_result)
+    head, tail = base
+    text = f"{head}, frame {frame:g}, {tail}" if frames != nodegroup.ALWAYS else f"{head}, {tail}"
+    notes = ([stack_warning(above)] if above else []) + lock_notes(scene)
+    if notes:
+        text += "".join(f" \u2014 {n}" for n in notes)
+    set_status(obj, mod, text, frames, wrote_result=wrote_result, report=False)
+
+
+# --- Render > Lock Interface ------------------------------------------------------------
+# Renders started from a window run in a job thread, and so do the handlers that compute the
+# render-level result there (render_pre, frame_change_post): they write Blender data, which
+# is safe only while the interface is locked (RenderSettings.use_lock_interface; a
+# background render runs in the main thread and needs nothing). The add-on turns the
+# setting on in one place only, add_smooth_ffd in a window, and says so (operator report,
+# console, status); it never turns it on behind the user's back (file load, render), and
+# while it is off, the status says what renders from the window do without it.
+
+_lock_turned_on = set()   # names of scenes where add_smooth_ffd turned it on (this session)
+
+
+def window_session():
+    """Whether Blender runs with windows (renders from a window use a job thread). Tests
+    replace it to check the window behaviour in background mode."""
+    return not bpy.app.background
+
+
+def ensure_render_lock(scene):
+    """Turns on Lock Interface for a window session (not in background); returns the
+    message saying so, or None when nothing changed."""
+    if not window_session() or scene is None or scene.render.use_lock_interface:
+        return None
+    scene.render.use_lock_interface = True
+    _lock_turned_on.add(scene.name_full)
+    message = (f"Smooth FFD turned on Render > Lock Interface in scene {scene.name!r}: the "
+               f"add-on computes the render-level result while a render runs")
+    print(message)
+    return message
+
+
+def lock_notes(scene=None):
+    """What the status says about Lock Interface (nothing in background mode)."""
+    scene = scene if scene is not None else bpy.context.scene
+    if not window_session() or scene is None:
+        return []
+    if not scene.render.use_lock_interface:
+        return ["warning: Render > Lock Interface is off: renders started from this window "
+                "keep the viewport result of the frame shown, and other frames render the "
+                "source mesh"]
+    if scene.name_full in _lock_turned_on:
+        return ["Render > Lock Interface turned on by Smooth FFD"]
+    return []
 
 
 def _fail(obj, mod, st, message):
-    st.last_key = None
-    st.status_base = None
+    if st is not None:
+        st.last_key = None
+        st.status_base = None
     try:
-        set_status(obj, mod, "Error: " + message, False)
+        set_status(obj, mod, "Error: " + message, nodegroup.NEVER)
     except Exception as e:   # even the status write failed (e.g. group removed)
         print(f"Smooth FFD [{obj.name}]: {message} (status not written: {e})")
 

@@ -3,11 +3,21 @@
 Python cannot register a modifier type, so each Smooth FFD is a Geometry Nodes modifier using
 this group: its inputs are the settings shown in the modifier panel, and its output is the
 geometry of a hidden result object (Object Info, Original space) that the handlers keep up to
-date; while no valid result exists, a Switch passes the source geometry through unchanged.
+date. The group itself decides, without Python, which geometry a frame gets (so a file opened
+where the add-on does not run never shows one frame's result on another frame):
+
+- inside the bake's frames [Bake From, Bake To): the bake (bake.py), whatever else holds;
+- else inside the frames the live result belongs to [Result From, Result To) (the add-on
+  writes the frame it computed, or the whole timeline when nothing the result depends on
+  is animated): the live result;
+- else the source geometry, unchanged (no result for this frame, or an error); on Blender
+  4.5+ a Warning node then says so in the modifier panel.
 
 Layouts (the group's GROUP_TAG value): 1, Backend a text input (Blender 3.4-4.0); 2, Backend a
-menu (4.1+: a menu socket feeding a Menu Switch node, which defines the items). Files made with
-layout 1 are moved to layout 2 when opened in 4.1+ (migrate), keeping every setting.
+menu (4.1+: a menu socket feeding a Menu Switch node, which defines the items); 3 and 4, the
+same with the frame ranges and the bake (Show Result folded into the result's frame range).
+Files made with an older layout are moved to this Blender's when opened (migrate), keeping
+every setting.
 """
 import bpy
 
@@ -15,12 +25,20 @@ from . import compat
 
 GROUP_NAME = "Smooth FFD"
 GROUP_TAG = "smooth_ffd_group"   # custom property marking our group (value: layout version)
-TEXT_LAYOUT, MENU_LAYOUT = 1, 2
-GROUP_LAYOUT = MENU_LAYOUT if compat.HAS_MENU_SOCKET else TEXT_LAYOUT
+TEXT_LAYOUT, MENU_LAYOUT = 1, 2              # before the frame ranges (files of older add-ons)
+TEXT_FRAMES_LAYOUT, MENU_FRAMES_LAYOUT = 3, 4
+GROUP_LAYOUT = MENU_FRAMES_LAYOUT if compat.HAS_MENU_SOCKET else TEXT_FRAMES_LAYOUT
+MENU_LAYOUTS = (MENU_LAYOUT, MENU_FRAMES_LAYOUT)
+FRAMES_LAYOUTS = (TEXT_FRAMES_LAYOUT, MENU_FRAMES_LAYOUT)
 BACKEND_ITEMS = ("Auto", "CPU", "CUDA")   # the menu's items (inputs.parse_backend reads any case)
 
+# Frame ranges are half-open [from, to); an empty one (from > to) selects nothing, an
+# "always" one covers every frame Blender allows (MAXFRAME is 1048574).
+NEVER = (1.0, 0.0)
+ALWAYS = (-1.0e7, 1.0e7)
+
 # (name, socket type, default, min, max, description); order = panel order.
-INPUTS = (
+SETTINGS = (
     ("Lattice", 'NodeSocketObject', None, None, None, "Lattice object that deforms the mesh"),
     ("Viewport Level", 'NodeSocketInt', 3, 1, 64, "Sub-triangles per patch edge in the viewport"),
     ("Render Level", 'NodeSocketInt', 10, 1, 64, "Sub-triangles per patch edge for render and Apply"),
@@ -31,11 +49,27 @@ INPUTS = (
     ("Exact Normals", 'NodeSocketBool', False, None, None,
      "Blender 3.4-4.4: write exact custom normals in the viewport too (slow on big meshes)"),
     ("Status", 'NodeSocketString', "", None, None, "Backend used, last update time, or the error"),
-    # Internal inputs written by the add-on, hidden from the panel where Blender allows it.
+)
+# Internal inputs written by the add-on, hidden from the panel where Blender allows it (4.2+).
+INTERNAL_INPUTS = (
+    ("Result Object", 'NodeSocketObject', None, None, None, "Internal: the hidden result mesh"),
+    ("Result From", 'NodeSocketFloat', NEVER[0], None, None,
+     "Internal: first frame the result belongs to"),
+    ("Result To", 'NodeSocketFloat', NEVER[1], None, None,
+     "Internal: end (exclusive) of the frames the result belongs to"),
+    ("Bake Object", 'NodeSocketObject', None, None, None, "Internal: the baked frames"),
+    ("Bake From", 'NodeSocketFloat', NEVER[0], None, None, "Internal: first baked frame - 1/2"),
+    ("Bake To", 'NodeSocketFloat', NEVER[1], None, None, "Internal: last baked frame + 1/2"),
+)
+INPUTS = SETTINGS + INTERNAL_INPUTS
+INTERNAL = tuple(name for name, *_ in INTERNAL_INPUTS)
+# Layouts 1 and 2 (older files): a validity flag instead of the frame ranges, no bake.
+OLD_INTERNAL_INPUTS = (
     ("Result Object", 'NodeSocketObject', None, None, None, "Internal: the hidden result mesh"),
     ("Show Result", 'NodeSocketBool', False, None, None, "Internal: the result is valid"),
 )
-INTERNAL = ("Result Object", "Show Result")
+STALE_MESSAGE = ("Smooth FFD: no result for this frame (the add-on did not compute it, see "
+                 "Status): showing the source mesh")
 
 
 def is_smooth_ffd_group(group):
@@ -66,12 +100,15 @@ def ensure_group():
 
 
 def _build_group(group_layout=GROUP_LAYOUT):
-    """group_layout: TEXT_LAYOUT builds 3.4-4.0's group in any version (tests of migrate)."""
+    """group_layout: an older layout (TEXT_LAYOUT, ...) builds that layout's group in any
+    version (tests of migrate)."""
     group = bpy.data.node_groups.new(GROUP_NAME, 'GeometryNodeTree')
     group[GROUP_TAG] = group_layout
-    menu = group_layout == MENU_LAYOUT
+    menu = group_layout in MENU_LAYOUTS
+    frames = group_layout in FRAMES_LAYOUTS
     compat.new_group_socket(group, 'INPUT', 'NodeSocketGeometry', "Geometry")
-    for name, stype, default, lo, hi, desc in INPUTS:
+    internal = INTERNAL_INPUTS if frames else OLD_INTERNAL_INPUTS
+    for name, stype, default, lo, hi, desc in SETTINGS + internal:
         if name == "Backend" and menu:
             stype, default, desc = 'NodeSocketMenu', None, "Auto (CUDA when usable), CPU or CUDA"
         sock = compat.new_group_socket(group, 'INPUT', stype, name)
@@ -80,7 +117,7 @@ def _build_group(group_layout=GROUP_LAYOUT):
             sock.default_value = default
         if lo is not None:
             sock.min_value, sock.max_value = lo, hi
-        if name in INTERNAL:
+        if name in {n for n, *_ in internal}:
             compat.hide_in_modifier(sock)
     compat.new_group_socket(group, 'OUTPUT', 'NodeSocketGeometry', "Geometry")
 
@@ -90,19 +127,101 @@ def _build_group(group_layout=GROUP_LAYOUT):
     info = nodes.new('GeometryNodeObjectInfo')
     # ORIGINAL: the result mesh is already in the source object's local space.
     info.transform_space = 'ORIGINAL'
-    switch = nodes.new('GeometryNodeSwitch')
-    switch.input_type = 'GEOMETRY'
-    gin.location, info.location, switch.location, gout.location = (-400, 0), (-150, -150), (100, 0), (300, 0)
-
     links.new(_out(gin, "Result Object"), info.inputs["Object"])
-    cond, false_in, true_in = _switch_sockets(switch)
-    links.new(_out(gin, "Show Result"), cond)
-    links.new(_out(gin, "Geometry"), false_in)
-    links.new(info.outputs["Geometry"], true_in)
-    links.new(switch.outputs[_first_enabled(switch.outputs, 'GEOMETRY')], gout.inputs[0])
+    gin.location, info.location, gout.location = (-900, 0), (-150, -150), (500, 0)
+    if not frames:
+        switch = _switch(group, (100, 0))
+        cond, false_in, true_in = _switch_sockets(switch)
+        links.new(_out(gin, "Show Result"), cond)
+        links.new(_out(gin, "Geometry"), false_in)
+        links.new(info.outputs["Geometry"], true_in)
+        links.new(_switch_out(switch), gout.inputs[0])
+    else:
+        _frame_switches(group, gin, gout, info)
     if menu:
         _backend_menu(group, gin)
     return group
+
+
+def _frame_switches(group, gin, gout, info):
+    """Source, live result or bake by the frame the depsgraph evaluates (module docstring)."""
+    nodes, links = group.nodes, group.links
+    time = nodes.new('GeometryNodeInputSceneTime')
+    time.location = (-650, 300)
+    frame = time.outputs["Frame"]   # with the subframe (motion blur), as Blender evaluates it
+    in_result = _in_range(group, frame, _out(gin, "Result From"), _out(gin, "Result To"), -300)
+    in_bake = _in_range(group, frame, _out(gin, "Bake From"), _out(gin, "Bake To"), -100)
+    show_live = in_result
+    if compat.HAS_WARNING_NODE:
+        # The warning shows in the modifier panel whenever the source is shown instead of a
+        # result. Its output (the condition, passed through) must be used or the node is
+        # never evaluated: in_result AND NOT(its output), which is in_result again, and stays
+        # in_result where the node is missing (a 4.5 file opened in 4.2 loses it: NOT of an
+        # unlinked input is True).
+        stale = _boolean(group, 'NOT', (in_result,), (-100, 450))
+        warn = nodes.new('GeometryNodeWarning')
+        warn.warning_type = 'WARNING'
+        warn.location = (50, 450)
+        links.new(stale, warn.inputs["Show"])
+        warn.inputs["Message"].default_value = STALE_MESSAGE
+        not_stale = _boolean(group, 'NOT', (warn.outputs["Show"],), (200, 450))
+        show_live = _boolean(group, 'AND', (in_result, not_stale), (350, 450))
+    live = _switch(group, (100, 0))
+    cond, false_in, true_in = _switch_sockets(live)
+    links.new(show_live, cond)
+    links.new(_out(gin, "Geometry"), false_in)
+    links.new(info.outputs["Geometry"], true_in)
+    bake_info = nodes.new('GeometryNodeObjectInfo')
+    bake_info.transform_space = 'ORIGINAL'   # baked meshes are in the source's space too
+    bake_info.location = (-150, -400)
+    links.new(_out(gin, "Bake Object"), bake_info.inputs["Object"])
+    baked = _switch(group, (300, 0))
+    cond, false_in, true_in = _switch_sockets(baked)
+    links.new(in_bake, cond)
+    links.new(_switch_out(live), false_in)
+    links.new(bake_info.outputs["Geometry"], true_in)
+    links.new(_switch_out(baked), gout.inputs[0])
+
+
+def _in_range(group, value, lo, hi, y):
+    """Boolean socket: lo <= value < hi."""
+    ge = _compare(group, 'GREATER_EQUAL', value, lo, (-450, y))
+    lt = _compare(group, 'LESS_THAN', value, hi, (-450, y - 60))
+    return _boolean(group, 'AND', (ge, lt), (-300, y))
+
+
+def _compare(group, operation, a, b, location):
+    node = group.nodes.new('FunctionNodeCompare')
+    node.data_type = 'FLOAT'
+    node.operation = operation
+    node.location = location
+    sock_a, sock_b = [s for s in node.inputs if s.enabled][:2]
+    for sock, src in ((sock_a, a), (sock_b, b)):
+        if isinstance(src, (int, float)):
+            sock.default_value = float(src)
+        else:
+            group.links.new(src, sock)
+    return node.outputs[0]
+
+
+def _boolean(group, operation, operands, location):
+    node = group.nodes.new('FunctionNodeBooleanMath')
+    node.operation = operation
+    node.location = location
+    for sock, src in zip([s for s in node.inputs if s.enabled], operands):
+        group.links.new(src, sock)
+    return node.outputs[0]
+
+
+def _switch(group, location):
+    switch = group.nodes.new('GeometryNodeSwitch')
+    switch.input_type = 'GEOMETRY'
+    switch.location = location
+    return switch
+
+
+def _switch_out(switch):
+    return switch.outputs[_first_enabled(switch.outputs, 'GEOMETRY')]
 
 
 def _backend_menu(group, gin):
@@ -127,11 +246,16 @@ def _backend_menu(group, gin):
 
 
 def migrate(mod):
-    """Moves a modifier using an older layout's group (a file from 3.4-4.0) to this Blender's
-    group, keeping every setting; returns True when it did. Only upgrades."""
+    """Moves a modifier using an older layout's group (a file from an older add-on or from
+    3.4-4.0) to this Blender's group, keeping every setting; returns True when it did. Only
+    upgrades: text to menu, no frame ranges to frame ranges."""
     old = mod.node_group
-    if not is_smooth_ffd_group(old) or not isinstance(layout(old), int) \
-            or layout(old) >= GROUP_LAYOUT:
+    old_layout = layout(old)
+    if not is_smooth_ffd_group(old) or old_layout not in (TEXT_LAYOUT, MENU_LAYOUT,
+                                                           TEXT_FRAMES_LAYOUT, MENU_FRAMES_LAYOUT) \
+            or old_layout == GROUP_LAYOUT \
+            or (old_layout in MENU_LAYOUTS and GROUP_LAYOUT not in MENU_LAYOUTS) \
+            or (old_layout in FRAMES_LAYOUTS and GROUP_LAYOUT not in FRAMES_LAYOUTS):
         return False
     values = {}
     for name, *_ in INPUTS:
@@ -149,6 +273,8 @@ def migrate(mod):
                 print(f"Smooth FFD [{mod.name}]: backend {value!r} is not a menu item: auto")
                 value = "auto"
         compat.set_modifier_input(mod, name, value)
+    # An old group's result had no frame range: shown nowhere until the handlers write one
+    # (load_post recomputes every modifier).
     if old.users == 0:
         bpy.data.node_groups.remove(old)
     return True

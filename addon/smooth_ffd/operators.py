@@ -1,4 +1,4 @@
-"""Operators and menu entries: Add / Apply / Remove / Update Smooth FFD."""
+"""Operators and menu entries: Add / Apply / Remove / Update Smooth FFD, Bake / Clear Bake."""
 import bpy
 
 from . import api
@@ -35,6 +35,8 @@ class OBJECT_OT_smooth_ffd_add(bpy.types.Operator):
             self.report({'ERROR'}, str(e))
             return {'CANCELLED'}
         self.report({'INFO'}, f"{mod.name}: {api.status(mod)}")
+        if api.lock_message[0]:
+            self.report({'WARNING'}, api.lock_message[0])
         return {'FINISHED'}
 
 
@@ -91,6 +93,53 @@ class OBJECT_OT_smooth_ffd_remove(_ModifierOperator, bpy.types.Operator):
         return {'FINISHED'}
 
 
+class OBJECT_OT_smooth_ffd_bake(_ModifierOperator, bpy.types.Operator):
+    """Bake a frame range of the Smooth FFD result into the file, at the render level, so that
+    Blender without the add-on (render farms) renders those frames"""
+    bl_idname = "object.smooth_ffd_bake"
+    bl_label = "Bake Smooth FFD"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    frame_start: bpy.props.IntProperty(name="Start", default=1)
+    frame_end: bpy.props.IntProperty(name="End", default=250)
+
+    def invoke(self, context, event):
+        self.frame_start, self.frame_end = context.scene.frame_start, context.scene.frame_end
+        return context.window_manager.invoke_props_dialog(self)
+
+    def execute(self, context):
+        obj, mod = self._modifier(context)
+        if mod is None:
+            self.report({'ERROR'}, "no Smooth FFD modifier")
+            return {'CANCELLED'}
+        wm = context.window_manager
+        wm.progress_begin(0, 1)
+        try:
+            meshes = api.bake_smooth_ffd(obj, mod, self.frame_start, self.frame_end)
+        except (RuntimeError, ValueError) as e:
+            self.report({'ERROR'}, str(e))
+            return {'CANCELLED'}
+        finally:
+            wm.progress_end()
+        self.report({'INFO'}, f"{mod.name}: baked frames {self.frame_start}-{self.frame_end} "
+                              f"({meshes} distinct meshes)")
+        return {'FINISHED'}
+
+
+class OBJECT_OT_smooth_ffd_bake_clear(_ModifierOperator, bpy.types.Operator):
+    """Remove the Smooth FFD bake: the modifier computes live again on those frames"""
+    bl_idname = "object.smooth_ffd_bake_clear"
+    bl_label = "Clear Smooth FFD Bake"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def execute(self, context):
+        obj, mod = self._modifier(context)
+        if mod is None:
+            return {'CANCELLED'}
+        api.clear_bake(obj, mod)
+        return {'FINISHED'}
+
+
 class OBJECT_OT_smooth_ffd_update(bpy.types.Operator):
     """Recompute every Smooth FFD result now"""
     bl_idname = "object.smooth_ffd_update"
@@ -111,6 +160,8 @@ class OBJECT_MT_smooth_ffd(bpy.types.Menu):
         layout.operator(OBJECT_OT_smooth_ffd_add.bl_idname, text="Add Smooth FFD")
         layout.operator(OBJECT_OT_smooth_ffd_apply.bl_idname, text="Apply")
         layout.operator(OBJECT_OT_smooth_ffd_remove.bl_idname, text="Remove")
+        layout.operator(OBJECT_OT_smooth_ffd_bake.bl_idname, text="Bake...")
+        layout.operator(OBJECT_OT_smooth_ffd_bake_clear.bl_idname, text="Clear Bake")
         layout.operator(OBJECT_OT_smooth_ffd_update.bl_idname, text="Update All")
 
 
@@ -126,6 +177,8 @@ CLASSES = (
     OBJECT_OT_smooth_ffd_add,
     OBJECT_OT_smooth_ffd_apply,
     OBJECT_OT_smooth_ffd_remove,
+    OBJECT_OT_smooth_ffd_bake,
+    OBJECT_OT_smooth_ffd_bake_clear,
     OBJECT_OT_smooth_ffd_update,
     OBJECT_MT_smooth_ffd,
 )

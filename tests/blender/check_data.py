@@ -252,7 +252,7 @@ def test_carry_matches_core():
     lat = T.make_lattice((3, 3, 3), "KEY_BSPLINE", scale=(1.6, 1.6, 1.6), seed=5)
     mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=3)
     T.update()
-    st = modifier_update._states[(obj.name_full, mod.name)]
+    st = modifier_update.state_of(obj, mod)
     res = st.result
     ev = T.evaluated_mesh(obj)
     copy, render = uv_array(ev, "copy"), uv_array(ev, "UVMap")
@@ -292,7 +292,7 @@ def test_no_extras_no_cost():
 def test_extras_follow_edits():
     """Carried data follow source edits that need no new plan (weights, UV maps, groups)."""
     obj, lat, mod = sphere_scene()
-    st = modifier_update._states[(obj.name_full, mod.name)]
+    st = modifier_update.state_of(obj, mod)
     plan = st.plan_key
     nv = len(obj.data.vertices)
     v = int(np.nonzero(groups_of(obj.data, ["full", "partial"])["partial"][0])[0][0])

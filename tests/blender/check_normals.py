@@ -104,7 +104,7 @@ def run_mesh(kind, level):
     # one a corner (the core's corner layout, modifier_update._layout). Either way every
     # corner shows the core's normal (3.4-4.4: up to their 16-bit storage, checked on the
     # per-vertex path, the one new there).
-    st = modifier_update._states[(obj.name_full, mod.name)]
+    st = modifier_update.state_of(obj, mod)
     res = st.result
     rv = st.deformer.plan.render_vertices()[0]
     per_vertex = int(np.bincount(rv, minlength=len(res.positions)).max()) <= 1

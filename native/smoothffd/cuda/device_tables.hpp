@@ -223,7 +223,7 @@ struct DeviceTables {
   std::vector<GridInfo> grid_walk;                   // the walk's boundary points
 
   // Dynamic shared memory of the shared-memory modes (boxes: with the box polynomials, else
-  // the control values), bytes: the layout k_inline stages (InlineArgs::shared_units).
+  // the control values), bytes: the layout k_inline stages (inline_kernel.cu).
   size_t shared_bytes(bool boxes) const;
   // Entries of a group's boundary list (a multiple of 8).
   int list_stride() const { return (32 * walk_boundary + 7) / 8 * 8; }

@@ -49,8 +49,10 @@ __device__ __forceinline__ void edge_control_points_rec(const InlinePatch& r, in
                                                         V3 Q1, V3 Q2, const float* Ja, const float* Jb, V3 c[2]) {
   const uint32_t ef = (r.flags >> (12 + 4 * k)) & 15u;
   const bool self1 = ((r.flags >> (24 + k)) & 1u) != 0;  // this patch is the edge's side 1
+  // Both normals loaded, then one chosen (independent loads, not a load from a chosen address).
   auto rest = [&](int end, int side) {
-    return (side == 1) == self1 ? load3(r.adjust + 3 * (end ? kb : ka)) : load3(r.nb[k] + 3 * end);
+    const V3 own = load3(r.adjust + 3 * (end ? kb : ka)), across = load3(r.nb[k] + 3 * end);
+    return (side == 1) == self1 ? own : across;
   };
   edge_control_points(Pa, Pb, Q1, Q2, Ja, Jb, ef & 3u, (ef & 4u) != 0, (ef & 8u) != 0, rest, c);
 }

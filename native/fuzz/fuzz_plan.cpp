@@ -3,7 +3,10 @@
 //
 // Contract checked (beyond ASan/UBSan): build_plan either succeeds or throws
 // std::invalid_argument (anything else is a bug), and every output position and normal is
-// finite, normals unit length. Sizes are bounded (<= 12 vertices, <= 8 faces of <= 7
+// finite, normals unit length; the input vertices' outputs match the lattice's double
+// evaluation within float rounding (check_input_vertices). B-spline knots start anywhere
+// (offsets up to 1e6), with non-uniform spans from 1 down to 1e-12 (and 1e-9 of the offset)
+// and repeated knots up to the degree's limit. Sizes are bounded (<= 12 vertices, <= 8 faces of <= 7
 // corners, <= 5 Blender points or degree + 3 B-spline points an axis, B-spline degrees summing
 // to <= 8, level <= 3) so that an input runs in milliseconds (tens under ASan).
 //
@@ -54,17 +57,29 @@ bool decode_lattice(FuzzedDataProvider& fdp, LatticeSpec& s) {
       for (int b = 0; b < a; ++b) used += s.axes[b].degree();
       int p = fdp.ConsumeIntegralInRange<int>(1, std::max(1, std::min(5, 8 - used - (2 - a))));
       int n = fdp.ConsumeIntegralInRange<int>(p + 1, p + 3);
-      // Non-decreasing knots from byte-sized steps (0 = a repeated knot); a scale byte makes
-      // some spans tiny. Occasionally a raw (possibly invalid) knot vector.
+      // Non-decreasing knots from byte-sized steps (0 = a repeated knot, at most p + 1 in a row
+      // at the ends and p inside, so the basis stays a B-spline one) times a scale (10^0 ..
+      // 10^-12: tiny spans), from an offset (0 usually, else anything from -1e6 to 1e6:
+      // knots that do not start at 0). Occasionally a raw (possibly invalid) knot vector.
       std::vector<double> U;
       double scale = std::pow(10.0, -fdp.ConsumeIntegralInRange<int>(0, 12));
-      double x = 0;
+      uint8_t offset_kind = fdp.ConsumeIntegral<uint8_t>();
+      double x = offset_kind < 128 ? 0.0 : offset_kind < 192 ? palette_or_range(fdp, -8, 8)
+                                                              : std::ldexp(fdp.ConsumeFloatingPointInRange<double>(-1, 1), fdp.ConsumeIntegralInRange<int>(0, 20));
+      // Spans below 1e-9 of the offset are a few double ulps wide: even the double reference
+      // cannot resolve them (find_piece's rounding allowance is a fifth of such a span).
+      scale = std::fmax(scale, 1e-9 * std::fabs(x));
       if (fdp.ConsumeIntegral<uint8_t>() < 8) {
         for (int i = 0; i < n + p + 1; ++i) U.push_back(palette_or_range(fdp, -2, 2));
       } else {
+        int run = 1;  // equal knots so far
         for (int i = 0; i < n + p + 1; ++i) {
           U.push_back(x);
-          x += scale * fdp.ConsumeIntegral<uint8_t>() / 16.0;
+          bool end = i + 1 <= p || i + 1 >= n;  // the next knot is among the first or last p + 1
+          int step = fdp.ConsumeIntegral<uint8_t>();
+          if (step == 0 && run >= (end ? p + 1 : p)) step = 16;
+          run = step == 0 ? run + 1 : 1;
+          x += scale * step / 16.0;
         }
       }
       s.axes[a] = AxisBasis::bspline(p, U, n);  // may throw invalid_argument: fine
@@ -115,6 +130,52 @@ InputMesh decode_mesh(FuzzedDataProvider& fdp) {
   return m;
 }
 
+// Output vertices [0, V) are the input vertices deformed: they must match the lattice's own
+// double-precision evaluation (LatticeSpec::evaluate, which Python's lattice.evaluate calls)
+// within float rounding. The float pipeline rounds the point (sample positions), its parameter
+// s = A p + b and the basis, so the bound scales with the lattice's size, the point, the
+// displacements and the deformation's Jacobian J (how much a rounded point moves its image):
+//   |F_float - F| <= 2^-24 * 256 * ((size + |p| + |F|) * (1 + |J|) + |D|max).
+// A lattice whose parameters lie far from their own spans (knots at 1e6 + [0, 1]) loses the
+// spans to rounding in s and fails this.
+void check_input_vertices(const InputMesh& mesh, const LatticeSpec& spec, const std::vector<float>& Df,
+                          const std::vector<float>& pos) {
+  const int V = (int)mesh.positions.size() / 3;
+  std::vector<double> D(Df.begin(), Df.end());
+  double dmax = 0;
+  for (double d : D) dmax = std::fmax(dmax, std::fabs(d));
+  // The lattice's size: its box in object space, from the knot domain through the inverse map.
+  double size = 0;
+  for (int a = 0; a < 3; ++a) {
+    std::vector<double> planes = spec.axes[a].planes();
+    double width = planes.empty() ? 1.0 : planes.back() - planes.front();
+    double row = 0;
+    for (int c = 0; c < 3; ++c) row = std::fmax(row, std::fabs(spec.object_to_param[a][c]));
+    if (row > 0) size = std::fmax(size, width / row);
+  }
+  const double eps = std::ldexp(1.0, -24) * 256;
+  for (int v = 0; v < V; ++v) {
+    const double* p = &mesh.positions[3 * (size_t)v];
+    double w = mesh.vertex_weight.empty() ? 1.0 : (double)mesh.vertex_weight[v];
+    double F[3], J[9];
+    spec.evaluate(p, D.data(), w, F, J);
+    double jn = 0, pn = 0, fn = 0, err = 0;
+    for (int i = 0; i < 9; ++i) jn = std::fmax(jn, std::fabs(J[i]));
+    for (int i = 0; i < 3; ++i) {
+      pn = std::fmax(pn, std::fabs(p[i]));
+      fn = std::fmax(fn, std::fabs(F[i]));
+      err = std::fmax(err, std::fabs((double)pos[3 * (size_t)v + i] - F[i]));
+    }
+    if (!std::isfinite(F[0] + F[1] + F[2]) || !std::isfinite(jn)) continue;  // beyond double: nothing to compare
+    double tol = eps * ((size + pn + fn) * (1 + 3 * jn) + dmax);
+    if (!(err <= tol)) {
+      std::fprintf(stderr, "fuzz_plan: input vertex %d at (%g, %g, %g): output (%.9g, %.9g, %.9g), lattice (%.9g, %.9g, %.9g), |J| %g, size %g\n",
+                   v, p[0], p[1], p[2], pos[3 * (size_t)v], pos[3 * (size_t)v + 1], pos[3 * (size_t)v + 2], F[0], F[1], F[2], jn, size);
+      fail("an input vertex's output differs from lattice evaluation by", err / tol);
+    }
+  }
+}
+
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
@@ -144,6 +205,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     std::fprintf(stderr, "\n");
   }
   if (plan->patches > 20000) fail("too many patches for a bounded input", plan->patches);
+  if (std::getenv("FUZZ_PLAN_VERBOSE")) {
+    for (int a = 0; a < 3; ++a) {
+      std::fprintf(stderr, "axis %d: degree %d, %d points, planes", a, spec.axes[a].degree(), spec.axes[a].n_ctrl());
+      for (double x : spec.axes[a].planes()) std::fprintf(stderr, " %.17g", x);
+      std::fprintf(stderr, "; map [%.17g %.17g %.17g | %.17g]\n", spec.object_to_param[a][0],
+                   spec.object_to_param[a][1], spec.object_to_param[a][2], spec.object_to_param[a][3]);
+    }
+  }
 
   std::vector<float> D(3 * (size_t)spec.count());
   for (float& d : D) d = (float)palette_or_range(fdp, -4, 4);
@@ -157,6 +226,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   }
   for (float x : pos)
     if (!std::isfinite(x)) fail("non-finite output position", x);
+  check_input_vertices(mesh, spec, D, pos);
   for (size_t i = 0; i < nrm.size(); i += 3) {
     double l = std::sqrt(double(nrm[i]) * nrm[i] + double(nrm[i + 1]) * nrm[i + 1] +
                          double(nrm[i + 2]) * nrm[i + 2]);

@@ -554,13 +554,21 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   build_render_vertices(plan, SV, tess, sub.face_count);
   timer.lap("render_vertices");
 
-  // 7. Lattice tables for the evaluators.
+  // 7. Lattice tables for the evaluators. The float tables measure each axis's parameter from
+  // `shift`: its first knot plane when that lies further from 0 than the planes' extent, else 0
+  // (ordinary lattices: unchanged tables). In float, s = A p + b near 1e4 has steps of 1e-3: a
+  // B-spline axis with knots at -13451.4916 + [0, 2.4e-4] lost its spans to rounding (input
+  // vertices 0.76 off in a lattice 2 wide, found by fuzz_plan); from its first plane it keeps
+  // them.
   for (int a = 0; a < 3; ++a) {
     plan.axis_offset[a] = (int)plan.pieces.size();
     plan.dims[a] = lattice.axes[a].n_ctrl();
+    const std::vector<double> planes = lattice.axes[a].planes();
+    double shift = 0;
+    if (!planes.empty() && std::fabs(planes.front()) > planes.back() - planes.front()) shift = planes.front();
     for (const AxisPiece& pc : lattice.axes[a].pieces()) {
       AxisPieceF f{};
-      f.origin = (float)pc.origin;
+      f.origin = (float)(pc.origin - shift);
       f.inv_scale = (float)(1.0 / pc.scale);
       f.degree = pc.degree;
       f.count = pc.count;
@@ -570,7 +578,8 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
       }
       plan.pieces.push_back(f);
     }
-    for (int c = 0; c < 4; ++c) plan.param_map[4 * a + c] = (float)lattice.object_to_param[a][c];
+    for (int c = 0; c < 3; ++c) plan.param_map[4 * a + c] = (float)lattice.object_to_param[a][c];
+    plan.param_map[4 * a + 3] = (float)(lattice.object_to_param[a][3] - shift);
   }
 
   plan.input_vertices = V;

@@ -292,6 +292,23 @@ def test_bake():
     left = [o.name for o in bpy.data.objects if o.get(T.bake.BAKE_KEY) is not None]
     T.check("remove: the bake goes with the modifier", not left, str(left))
 
+    # Apply inside the baked frames applies what the modifier shows (the bake) and deletes it.
+    obj, lat, mod = scene_setup()
+    sc = bpy.context.scene
+    sc.frame_set(4)
+    smooth_ffd.update(obj, mod, render=True)
+    want = snapshot(T.evaluated_mesh(obj))
+    smooth_ffd.bake_smooth_ffd(obj, mod, 3, 5)
+    sc.frame_set(4)
+    T.update()
+    smooth_ffd.apply_smooth_ffd(obj, mod)
+    T.update()
+    left = [o.name for o in bpy.data.objects if o.get(T.bake.BAKE_KEY) is not None]
+    got = T.positions(obj.data).astype(np.float32)
+    T.check("apply inside the baked frames: the baked mesh, the bake deleted",
+            not obj.modifiers and not left and got.shape == want["pos"].shape and
+            np.abs(got - want["pos"]).max() <= 1e-6, f"{got.shape} vs {want['pos'].shape}, {left}")
+
 
 # --- 4. without the add-on and without a bake: no other frame's result ----------------------
 

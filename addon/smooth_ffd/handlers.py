@@ -278,6 +278,41 @@ def on_load(*_args):
         update_all(scene)
 
 
+_saved_status = {}
+
+
+@persistent
+def on_save_pre(*_args):
+    """The saved status of a result bound to one frame says what Blender without the add-on
+    shows on the others (the group's choice, nodegroup); on_save_post puts the session's
+    status back, so the note is in the file only."""
+    _saved_status.clear()
+    for obj, mod in smooth_ffd_modifiers():
+        try:
+            lo, hi = modifier_update.get_frames(mod, "Result")
+            text = compat.get_modifier_input(mod, "Status")
+        except KeyError:
+            continue
+        if (lo, hi) in (nodegroup.ALWAYS, nodegroup.NEVER) or not text.startswith("OK"):
+            continue
+        _saved_status[(obj.name_full, mod.name)] = text
+        compat.set_modifier_input(mod, "Status", f"{text} \u2014 {saved_note(lo, hi)}")
+
+
+def saved_note(lo, hi):
+    return (f"saved: without the add-on, frames other than {(lo + hi) / 2:g} show the source "
+            f"mesh (bake them for Blender without the add-on)")
+
+
+@persistent
+def on_save_post(*_args):
+    for obj, mod in smooth_ffd_modifiers():
+        text = _saved_status.get((obj.name_full, mod.name))
+        if text is not None:
+            compat.set_modifier_input(mod, "Status", text)
+    _saved_status.clear()
+
+
 @persistent
 def on_undo_redo(scene, *_args):
     modifier_update.invalidate_sources()
@@ -315,6 +350,8 @@ _HANDLERS = (
     ("depsgraph_update_post", on_depsgraph_update),
     ("frame_change_post", on_frame_change),
     ("load_post", on_load),
+    ("save_pre", on_save_pre),
+    ("save_post", on_save_post),
     ("undo_post", on_undo_redo),
     ("redo_post", on_undo_redo),
     ("render_init", on_render_init),

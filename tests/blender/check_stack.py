@@ -347,8 +347,11 @@ def test_stale_without_addon():
                 nodegroup.STALE_MESSAGE in w1 and nodegroup.STALE_MESSAGE not in w3,
                 f"frame 1: {w1}, frame 3: {w3}")
     saved_status = str(data["src/1/status"])
-    T.check("without the add-on: the saved status names the frame of the result",
-            saved_status.startswith("OK") and ", frame 3, " in saved_status, saved_status)
+    T.check("without the add-on: the saved status names the frame of the result and says "
+            "what other frames show", saved_status.startswith("OK") and ", frame 3, " in
+            saved_status and "frames other than 3 show the source mesh" in saved_status,
+            saved_status)
+    T.check("the note is in the file only", "saved:" not in status(mod), status(mod))
     ours, source, saved = (data[f"render/{n}"] > 0.5 for n in ("ours1", "source", "saved3"))
     T.check("without the add-on: a render of frame 1 draws the source mesh",
             ours.mean() > 0.02 and (ours != source).mean() < 0.2 * (saved != source).mean(),

@@ -614,6 +614,35 @@ def test_lock_interface():
         modifier_update._lock_turned_on.clear()
 
 
+def test_migrate_layouts():
+    """A group of 3.4-4.0 with frame ranges (layout 3) moves to the menu group (4) on 4.1+,
+    keeping the frame ranges and the bake; an older group (1) on 3.4-4.0 moves to 3."""
+    obj, lat, mod = scene_setup("cube", animate=False)
+    old_layout = nodegroup.TEXT_FRAMES_LAYOUT if compat.HAS_MENU_SOCKET else nodegroup.TEXT_LAYOUT
+    old = nodegroup._build_group(old_layout)
+    old_name = old.name
+    ro = modifier_update.result_object(obj, mod, create=False)
+    values = {"Lattice": lat, "Render Level": 4, "Backend": "cpu", "Result Object": ro}
+    if old_layout in nodegroup.FRAMES_LAYOUTS:
+        values.update({"Result From": 2.5, "Result To": 3.5, "Bake From": 10.5, "Bake To": 12.5})
+    else:
+        values["Show Result"] = True
+    with handlers.muted():
+        mod.node_group = old
+        for k, v in values.items():
+            compat.set_modifier_input(mod, k, v)
+        moved = nodegroup.migrate(mod)
+    kept = {k: compat.get_modifier_input(mod, k) for k in values if k != "Show Result"}
+    want = dict(values, Backend="CPU" if compat.HAS_MENU_SOCKET else "cpu")
+    want.pop("Show Result", None)
+    T.check(f"migrate layout {old_layout} -> {nodegroup.GROUP_LAYOUT}: settings kept",
+            moved and nodegroup.layout(mod.node_group) == nodegroup.GROUP_LAYOUT and
+            kept == want and old_name not in bpy.data.node_groups, str(kept))
+    obj.update_tag()
+    T.update()
+    T.check("migrated: live", status(mod).startswith("OK cpu"), status(mod))
+
+
 def _fill(me, snap):
     """Builds a plain mesh from a snapshot (triangles)."""
     n = len(snap["pos"])
@@ -632,7 +661,7 @@ def _fill(me, snap):
 def main():
     T.setup()
     for fn in (test_bake, test_stale_without_addon, test_delete_lattice, test_hidden, test_rename,
-               test_lock_interface):
+               test_lock_interface, test_migrate_layouts):
         T.run(fn.__name__, fn)
     T.finish()
 

@@ -27,6 +27,7 @@ struct Clipper {
   double floor_tol[3] = {0, 0, 0};  // parameter units: rounding noise of "on the plane"
   double grad[3] = {0, 0, 0};       // |ds_a/dp|: parameter units per object unit
   int inputs = 0;                   // V: sub-vertices [0, V) are the input vertices
+  std::array<std::vector<double>, 3> planes;  // the knot planes of each axis, ascending
   std::vector<int> ring_start, ring;  // input vertex -> its neighbours in the triangles (CSR)
   std::vector<double> ring_length;    // the length of each of those edges
 
@@ -40,23 +41,37 @@ struct Clipper {
   }
 
   // Side of sub-vertex id of the plane s_a = c: -1, +1, or 0 where it counts as on the plane.
-  // Input vertices: within rounding, or when the plane crosses one of the vertex's edges within
-  // kClipEdgeSnap of the edge's length from it. Clip vertices: within their snap distance.
+  // Within rounding; else, for the plane of axis a nearest to the vertex only (a vertex snaps
+  // to one plane an axis: snapping a fan of planes onto one vertex would make needles of the
+  // pieces between them), input vertices when the plane crosses one of their edges within
+  // kClipEdgeSnap of its length from them or runs along one within that, clip vertices within
+  // their snap distance.
   int side_of(int id, int a, double c) const {
     const double d = s(id)[a] - c;
-    if (std::fabs(d) <= (id < inputs ? floor_tol[a] : reach[3 * (size_t)id + a])) return 0;
-    if (id < inputs)
-      for (int i = ring_start[id]; i < ring_start[id + 1]; ++i) {
-        const double dw = s(ring[i])[a] - c;
-        // The plane crosses the edge near this end ...
-        if ((dw < 0) != (d < 0) && std::fabs(dw) > floor_tol[a] &&
-            std::fabs(d) < kClipEdgeSnap * std::fabs(dw - d))
-          return 0;
-        // ... or runs along it: both ends within kClipEdgeSnap of its length (a thin strip).
-        const double len = ring_length[i] * grad[a] * kClipEdgeSnap;
-        if (std::fabs(d) < len && std::fabs(dw) < len) return 0;
-      }
-    return d < 0 ? -1 : 1;
+    if (std::fabs(d) <= floor_tol[a]) return 0;
+    const int side = d < 0 ? -1 : 1;
+    if (!nearest_plane(a, s(id)[a], c)) return side;
+    if (id >= inputs) return std::fabs(d) <= reach[3 * (size_t)id + a] ? 0 : side;
+    for (int i = ring_start[id]; i < ring_start[id + 1]; ++i) {
+      const double dw = s(ring[i])[a] - c;
+      // The plane crosses the edge near this end ...
+      if ((dw < 0) != (d < 0) && std::fabs(dw) > floor_tol[a] && std::fabs(d) < kClipEdgeSnap * std::fabs(dw - d))
+        return 0;
+      // ... or runs along it: both ends within kClipEdgeSnap of its length (a thin strip).
+      const double len = ring_length[i] * grad[a] * kClipEdgeSnap;
+      if (std::fabs(d) < len && std::fabs(dw) < len) return 0;
+    }
+    return side;
+  }
+
+  // Whether c is the plane of axis a nearest to parameter value x (ties: the lower).
+  bool nearest_plane(int a, double x, double c) const {
+    const std::vector<double>& pl = planes[a];
+    auto it = std::lower_bound(pl.begin(), pl.end(), x);
+    double best = INFINITY, at = 0;
+    if (it != pl.end()) best = *it - x, at = *it;
+    if (it != pl.begin() && x - *(it - 1) <= best) at = *(it - 1);
+    return at == c;
   }
 
   // The vertex where the segment u-v crosses plane `pi` (value c) of axis a. Computed from the
@@ -203,7 +218,7 @@ ClipResult clip_to_knot_boxes(const std::vector<double>& X, const std::vector<in
   c.param.resize(3 * (size_t)V);
   c.reach.resize(3 * (size_t)V);
   for (int v = 0; v < V; ++v) lattice.to_param(&X[3 * (size_t)v], &c.param[3 * (size_t)v]);
-  std::array<std::vector<double>, 3> planes;
+  std::array<std::vector<double>, 3>& planes = c.planes;
   std::array<double, 3> tol;
   for (int a = 0; a < 3; ++a) {
     planes[a] = lattice.axes[a].planes();

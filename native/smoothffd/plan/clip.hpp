@@ -18,6 +18,8 @@
 //     distance) from it, so cuts along one edge, or a cut and a later cut's crossing, are at
 //     least that far apart;
 //   * any vertex: within rounding (1e-5 of the smallest knot spacing, float32 noise).
+// Of each axis only the plane nearest to the vertex snaps (beyond rounding): where planes are
+// closer together than that, a fan of cuts through one vertex would leave needles between them.
 // Each decision depends only on the vertex, its neighbours and the plane, so every triangle
 // and piece around a vertex decides alike and the sub-mesh stays watertight (the pieces of a
 // polygon whose snapped vertices put it on both sides of a plane are split so that each edge

@@ -62,11 +62,12 @@ def main():
                 f"| {name} | {label} | {' / '.join(str(q[L].reversed) for L in LEVELS)} | "
                 f"{q[6].tiny} | {min(x.min_angle for _, x in ms):.3g}° "
                 f"({ms[0][1].input_min_angle:.3g}°) | {max(x.max_aspect for _, x in ms):.4g} | "
-                f"{max(x.flat_deviation for _, x in ms):.2g} | "
+                f"{max(x.flat_deviation for _, x in ms):.2g} / "
+                f"{max(x.flat_slide for _, x in ms):.2g} | "
                 + (f"{vol[-1]:+.2g} |" if vol else "open |"))
             print(rows[-1], file=sys.stderr)
     print("| mesh | lattice | reversed L = 1 / 3 / 6 | tiny L = 6 | smallest angle (input) | "
-          "largest aspect | flat deviation | volume change L = 6 |")
+          "largest aspect | flat: off the surface / whole distance | volume change L = 6 |")
     print("|---|---|---|---|---|---|---|---|")
     print("\n".join(rows))
     if a.json:

@@ -65,7 +65,8 @@ def test_quality_counts_reversed_tiny_and_flat_deviation():
                                 corner_normals=np.repeat(fn[:, None], 3, axis=1),
                                 rest_positions=p.copy())
     q = metrics.quality(res, mesh)
-    assert (q.reversed, q.degenerate, q.tiny, q.flat_faces, q.flat_deviation) == (0, 0, 0, 4, 0.0)
+    assert (q.reversed, q.degenerate, q.tiny, q.flat_faces, q.flat_deviation, q.flat_slide) == \
+        (0, 0, 0, 4, 0.0, 0.0)
     assert q.watertight and q.volume_change == 0.0 and q.against_face == 0
     assert q.min_angle == pytest.approx(45) and q.input_min_angle is None
     res.corner_normals = res.corner_normals.copy()
@@ -73,7 +74,10 @@ def test_quality_counts_reversed_tiny_and_flat_deviation():
     out[3] = [0, 0, 1.1]
     q = metrics.quality(res, mesh, input_triangles=tris)
     assert q.reversed == 1
-    assert q.flat_deviation == pytest.approx(0.1 / np.sqrt(3))
+    # off the planes: 0.1 along z is 0.1 / sqrt(3) off face (1, 2, 3), in the planes x = 0 and
+    # y = 0; relative to the diagonal sqrt(3)
+    assert q.flat_deviation == pytest.approx(0.1 / 3)
+    assert q.flat_slide == pytest.approx(0.1 / np.sqrt(3))
     assert q.volume_change == pytest.approx(0.1)
     assert q.input_min_angle == pytest.approx(45)
     with pytest.raises(ValueError, match="corner_normals"):

@@ -297,6 +297,14 @@ PYBIND11_MODULE(_core, m) {
       .def_property_readonly("output_vertices", [](const Plan& p) { return p.output_vertices; })
       .def_property_readonly("output_triangles", [](const Plan& p) { return p.output_triangles; })
       .def_property_readonly("render_vertex_count", [](const Plan& p) { return p.render_vertices; })
+      .def_property_readonly("flat_triangles", [](const Plan& p) { return p.flat_triangles; },
+                             "input triangles of flat faces (every corner normal is the face's own): "
+                             "their patches follow the triangles, not the normals")
+      .def_property_readonly("bounded_vertices", [](const Plan& p) { return p.bounded_vertices; },
+                             "input vertices whose normals the geometry follows only in part, so "
+                             "that no patch folds (docs/algorithm.md)")
+      .def_property_readonly("bounded_sub_vertices", [](const Plan& p) { return p.bounded_sub_vertices; },
+                             "the same for the vertices of the sub-mesh clipped by the knot planes")
       .def("render_vertices",
            [](const Plan& p) {
              return py::make_tuple(copy_out(p.render_position, {(py::ssize_t)p.render_vertices}),

@@ -26,6 +26,9 @@ import numpy as np
 from . import io as objio
 from . import lattice_json
 
+# make-lattice's largest lattice: 2^20 control points (101 x 101 x 101), a JSON of ~70 MB.
+MAKE_LATTICE_MAX_POINTS = 1 << 20
+
 # Errors that mean "your input is wrong", not "smoothffd is broken".
 _USER_ERRORS = (ValueError, TypeError, OSError, RuntimeError, MemoryError)
 
@@ -245,6 +248,12 @@ def cmd_make_lattice(args, progress):
             if n < d + 1:
                 raise UserError(f"--shape: degree {d} needs at least {d + 1} points on axis "
                                 f"{'xyz'[a]}, got {n}")
+    # Checked before the grid is built: --shape 1000 1000 1000 asked for 7.5 GiB at once, and
+    # 300 300 300 for minutes of work and a 1.5 GB file (found by native/fuzz/fuzz_cli.py).
+    points = math.prod(args.shape)
+    if points > MAKE_LATTICE_MAX_POINTS:
+        raise UserError(f"--shape: {' x '.join(map(str, args.shape))} = {points:,} control points; "
+                        f"make-lattice writes at most {MAKE_LATTICE_MAX_POINTS:,}")
     mode, amount = None, 0.0
     for m in ("twist", "bend", "bulge"):
         if getattr(args, m) is not None:
@@ -372,11 +381,12 @@ def cmd_quality(args, progress):
           + (f"; {q0.against_face} input corners with a normal against their face"
              if q0.against_face else ""))
     print(f"{'L':>3} {'triangles':>10} {'reversed':>9} {'degen':>6} {'tiny':>6} {'min angle':>10} "
-          f"{'max aspect':>11} {'flat dev':>9} {'volume':>10} watertight")
+          f"{'max aspect':>11} {'flat off':>9} {'flat dist':>9} {'volume':>10} watertight")
     for level, q in rows:
         vol = f"{q.volume_change:+.2e}" if q.volume_change is not None else "open"
         print(f"{level:>3} {q.triangles:>10,} {q.reversed:>9,} {q.degenerate:>6,} {q.tiny:>6,} "
               f"{q.min_angle:>9.3g}\u00b0 {q.max_aspect:>11.4g} {q.flat_deviation:>9.2e} "
+              f"{q.flat_slide:>9.2e} "
               f"{vol:>10} {'yes' if q.watertight else 'no'}")
     return 0
 

@@ -286,8 +286,13 @@ class Quality(NamedTuple):
     min_angle       smallest angle of any output triangle, degrees
     max_aspect      largest aspect ratio (longest edge^2 sqrt(3) / (4 area); 1: equilateral)
     flat_faces      input faces that the split normals say are flat (``flat_faces``)
-    flat_deviation  largest distance between an output vertex of a flat face and the exact
-                    FFD of its point of the flat input (the identity for ``lattice=None``)
+    flat_deviation  largest distance of an output vertex of a flat face from the exact FFD
+                    of the flat input (the identity for ``lattice=None``), across the surface:
+                    (x - F(p)) . n' with n' the deformed unit normal of the input triangle at
+                    p (Eq. 3); at rest, the distance from the triangle's plane
+    flat_slide      the same, the whole distance |x - F(p)| (also along the surface: where a
+                    flat face meets a smooth one, the shared crease curves within the flat
+                    face's plane)
     volume_change   (output volume - volume of the exact FFD of the flat input) / the
                     latter, None for an output that is not closed
     against_face    input corners whose normal points away from their face (n . face
@@ -306,6 +311,7 @@ class Quality(NamedTuple):
     max_aspect: float
     flat_faces: int
     flat_deviation: float
+    flat_slide: float
     volume_change: object
     against_face: int
     watertight: bool
@@ -336,12 +342,24 @@ def quality(result, mesh, lattice=None, flat_angle_degrees=1.0, input_triangles=
     area, ang, aspect = triangle_shapes(pos, tri)
     flat = flat_faces(mesh, flat_angle_degrees)
     fi = np.asarray(result.face_index, dtype=np.int64)
-    on_flat = np.unique(tri[flat[fi]])
-    dev = 0.0
-    if len(on_flat):
-        rest = np.asarray(result.rest_positions, dtype=np.float64)[on_flat]
-        ref = rest if lattice is None else np.asarray(lattice.evaluate(rest)[0], dtype=np.float64)
-        dev = float(np.linalg.norm(pos[on_flat] - ref, axis=1).max()) / size
+    dev = slide = 0.0
+    ft = tri[flat[fi]]
+    if len(ft):
+        rest = np.asarray(result.rest_positions, dtype=np.float64)
+        on = np.unique(ft)
+        ref = np.zeros_like(rest)
+        jac = np.zeros((len(rest), 3, 3))
+        jac[:] = np.eye(3)
+        ref[on] = rest[on]
+        if lattice is not None:
+            f, j = lattice.evaluate(rest[on])
+            ref[on], jac[on] = np.asarray(f, dtype=np.float64), np.asarray(j, dtype=np.float64)
+        r0, r1, r2 = rest[ft[:, 0]], rest[ft[:, 1]], rest[ft[:, 2]]
+        n = _unit(np.cross(r1 - r0, r2 - r0))
+        nd = _unit(np.einsum("tkrc,tc->tkr", _cofactor(jac.reshape(-1, 3, 3))[ft], n))
+        off = np.einsum("tki,tki->tk", pos[ft] - ref[ft], nd)
+        dev = float(np.abs(off).max()) / size
+        slide = float(np.linalg.norm(pos[on] - ref[on], axis=1).max()) / size
     report = edge_report(tri)
     vol = None
     if report.watertight:
@@ -357,7 +375,8 @@ def quality(result, mesh, lattice=None, flat_angle_degrees=1.0, input_triangles=
                    tiny=int((area < 1e-8 * size * size).sum()),
                    min_angle=float(ang.min()) if len(ang) else 0.0,
                    max_aspect=float(aspect.max()) if len(aspect) else 0.0,
-                   flat_faces=int(flat.sum()), flat_deviation=dev, volume_change=vol,
+                   flat_faces=int(flat.sum()), flat_deviation=dev, flat_slide=slide,
+                   volume_change=vol,
                    against_face=against, watertight=report.watertight, size=size,
                    input_min_angle=None if input_triangles is None or not len(input_triangles)
                    else float(triangle_shapes(inp, input_triangles)[1].min()))

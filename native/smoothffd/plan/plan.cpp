@@ -101,6 +101,37 @@ std::vector<double> triangle_corner_normals(const InputMesh& m, const Triangulat
   return cn;
 }
 
+// Triangles of flat faces: faces whose every corner normal is within the sharp angle of the
+// face's own (Newell) normal, the normal Blender and most tools give a polygon. #T, 0 or 1.
+std::vector<uint8_t> flat_triangles(const InputMesh& m, const Triangulation& tr,
+                                    const std::vector<double>& tcn, double cos_tol) {
+  const size_t F = m.face_offset.size() - 1, T = tr.face.size();
+  std::vector<double> fn(3 * F, 0.0);
+  for (size_t f = 0; f < F; ++f) {
+    const int b = m.face_offset[f], e = m.face_offset[f + 1];
+    for (int c = b; c < e; ++c) {
+      const double* p = &m.positions[3 * (size_t)m.corner_vertex[c]];
+      const double* q = &m.positions[3 * (size_t)m.corner_vertex[c + 1 < e ? c + 1 : b]];
+      fn[3 * f] += (p[1] - q[1]) * (p[2] + q[2]);
+      fn[3 * f + 1] += (p[2] - q[2]) * (p[0] + q[0]);
+      fn[3 * f + 2] += (p[0] - q[0]) * (p[1] + q[1]);
+    }
+    const double l = std::sqrt(fn[3 * f] * fn[3 * f] + fn[3 * f + 1] * fn[3 * f + 1] + fn[3 * f + 2] * fn[3 * f + 2]);
+    for (int i = 0; i < 3; ++i) fn[3 * f + i] = l > 0 && std::isfinite(l) ? fn[3 * f + i] / l : 0.0;
+  }
+  std::vector<uint8_t> face_flat(F, 1);
+  for (size_t t = 0; t < T; ++t) {
+    const double* n = &fn[3 * (size_t)tr.face[t]];
+    for (int k = 0; k < 3; ++k) {
+      const double* c = &tcn[9 * t + 3 * k];
+      if (!(c[0] * n[0] + c[1] * n[1] + c[2] * n[2] >= cos_tol)) face_flat[tr.face[t]] = 0;
+    }
+  }
+  std::vector<uint8_t> flat(T);
+  for (size_t t = 0; t < T; ++t) flat[t] = face_flat[tr.face[t]];
+  return flat;
+}
+
 // Render vertices (see plan.hpp). Needs the patches, edges, output topology and owners.
 void build_render_vertices(Plan& plan, int SV, const TessellationTables& tess, const std::vector<int>& face_count) {
   const int P = (int)(plan.patch_vertex.size() / 3), E = (int)plan.edge_flags.size();
@@ -217,6 +248,8 @@ void build_render_vertices(Plan& plan, int SV, const TessellationTables& tess, c
   plan.render_vertices = (int)plan.render_position.size();
 }
 
+constexpr int kMaxPlanLevel = 1024;  // 1M triangles a patch; the Python API stops at 64
+
 uint32_t pack_pieces(const int p[3]) { return uint32_t(p[0]) | uint32_t(p[1]) << 10 | uint32_t(p[2]) << 20; }
 
 // The evaluators run in float: every value of the lattice tables (step 7) must be a finite
@@ -279,6 +312,11 @@ double estimate_plan_bytes(double P, double SV, int level, int fit_degree, bool 
 Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt) {
   validate(mesh);
   if (opt.level < 1) throw std::invalid_argument("level: must be at least 1");
+  // The tessellation tables grow as L^2 whatever the mesh: level 2^31 - 1 from the bindings
+  // spent 11 s allocating before a MemoryError (found by native/fuzz/fuzz_bindings.py).
+  if (opt.level > kMaxPlanLevel)
+    throw std::invalid_argument("level: at most " + std::to_string(kMaxPlanLevel) + " (L^2 triangles a patch), got " +
+                                std::to_string(opt.level));
   for (int a = 0; a < 3; ++a)
     if (lattice.axes[a].pieces().size() > 1023)
       throw std::invalid_argument("lattice: too many knot spans on one axis (at most 1023)");
@@ -296,10 +334,13 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   std::vector<double> tcn = triangle_corner_normals(mesh, tr, tv);
   EdgeTable in_edges = build_edges(tv);
   std::vector<uint8_t> in_sharp = classify_sharp_ends(in_edges, tv, tcn, cos_tol);
+  // The normals the geometry follows (plan/rest_surface.hpp): flat faces their triangles' own.
+  AdjustNormals adjust(X, tv, tcn, flat_triangles(mesh, tr, tcn, cos_tol));
   timer.lap("triangulate");
 
-  // 2. Knot-box clipping; clip vertices move onto the crease-aware PN rest surface (4.3.1).
-  RestSurface rest = build_rest_surface(X, tv, in_edges, in_sharp, tcn);
+  // 2. Knot-box clipping; the crease-aware PN rest surface from the adjustment normals,
+  // bounded so that no patch, nor the triangle through any piece's corners on it, folds; clip
+  // vertices move onto the rest surface (4.3.1).
   ClipResult clip = clip_to_knot_boxes(X, tv, lattice);
   const int SV = clip.sub_vertices(), P = clip.patches();
   if (opt.memory_limit > 0) {
@@ -314,6 +355,21 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
       throw PlanTooLarge(msg);
     }
   }
+  RestSurface rest;
+  {
+    std::vector<int> piece_start(tv.size() / 3 + 1, 0);
+    for (int p = 0; p < P; ++p) piece_start[clip.patch_tri[p] + 1]++;
+    for (size_t t = 0; t + 1 < piece_start.size(); ++t) piece_start[t + 1] += piece_start[t];
+    std::vector<double> piece_bary(9 * (size_t)P);
+    std::vector<int> fill(piece_start.begin(), piece_start.end() - 1);
+    for (int p = 0; p < P; ++p) {
+      const int q = fill[clip.patch_tri[p]]++;
+      std::copy(&clip.patch_bary[9 * (size_t)p], &clip.patch_bary[9 * (size_t)p] + 9, &piece_bary[9 * (size_t)q]);
+    }
+    plan.bounded_vertices = bound_adjust_normals(X, tv, in_edges, in_sharp, tcn, adjust, rest, &piece_start, &piece_bary);
+  }
+  for (uint8_t f : adjust.flat) plan.flat_triangles += f;
+  const std::vector<double>& acn = adjust.corner;
   std::vector<double> moved(clip.flat);
   std::vector<double> sub_weight(SV, 1.0);
   CancelPoller poller(256);
@@ -339,31 +395,34 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   plan.patch_face.resize(P);
   plan.patch_render_normal.resize(9 * (size_t)P);
   plan.patch_adjust_normal.resize(9 * (size_t)P);
-  std::vector<double> render_d(9 * (size_t)P);
+  std::vector<double> render_d(9 * (size_t)P), adjust_d(9 * (size_t)P);
   for (int p = 0; p < P; ++p) {
     poller.tick();
     int t = clip.patch_tri[p];
     plan.patch_face[p] = tr.face[t];
-    double Pt[9], Nt[9];
+    double Pt[9], Nt[9], At[9];
     for (int k = 0; k < 3; ++k)
       for (int i = 0; i < 3; ++i) {
         Pt[3 * k + i] = X[3 * (size_t)tv[3 * t + k] + i];
         Nt[3 * k + i] = tcn[9 * (size_t)t + 3 * k + i];
+        At[3 * k + i] = acn[9 * (size_t)t + 3 * k + i];
       }
     for (int c = 0; c < 3; ++c) {
       const double* b = &clip.patch_bary[9 * (size_t)p + 3 * c];
       double rn[3], an[3];
       for (int i = 0; i < 3; ++i) rn[i] = b[0] * Nt[i] + b[1] * Nt[3 + i] + b[2] * Nt[6 + i];
       normalize_or(rn, Nt);
-      if (plan.patch_vertex[3 * p + c] < V) {
-        for (int i = 0; i < 3; ++i) an[i] = rn[i];
+      const int v = plan.patch_vertex[3 * p + c];
+      if (v < V) {
+        const int k = slot_of(tv, t, v);
+        for (int i = 0; i < 3; ++i) an[i] = At[3 * k + i];
       } else {
-        pn_quadratic_normal(Pt, Nt, b, an);
+        pn_quadratic_normal(Pt, At, b, an);
       }
       for (int i = 0; i < 3; ++i) {
         render_d[9 * (size_t)p + 3 * c + i] = rn[i];
+        adjust_d[9 * (size_t)p + 3 * c + i] = an[i];
         plan.patch_render_normal[9 * (size_t)p + 3 * c + i] = (float)rn[i];
-        plan.patch_adjust_normal[9 * (size_t)p + 3 * c + i] = (float)an[i];
       }
     }
   }
@@ -393,6 +452,23 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
       plan.edge_slot[4 * (size_t)e + 2 * s] = (uint8_t)slot_of(plan.patch_vertex, p, sub.vertex[2 * e]);
       plan.edge_slot[4 * (size_t)e + 2 * s + 1] = (uint8_t)slot_of(plan.patch_vertex, p, sub.vertex[2 * e + 1]);
     }
+  }
+  // The patches the evaluators make at rest from the clip vertices on the rest surface must not
+  // fold either (pieces next to cuts can be thin): the same bound on the sub-mesh.
+  {
+    // A patch that is a whole input triangle is that triangle's rest patch, checked above.
+    std::vector<uint8_t> sub_flat(P), clipped(P);
+    std::vector<int> pieces(tv.size() / 3, 0);
+    for (int p = 0; p < P; ++p) pieces[clip.patch_tri[p]]++;
+    for (int p = 0; p < P; ++p) {
+      sub_flat[p] = adjust.flat[clip.patch_tri[p]];
+      clipped[p] = pieces[clip.patch_tri[p]] > 1;
+    }
+    AdjustNormals sub_adjust(moved, plan.patch_vertex, adjust_d, sub_flat);
+    RestSurface sub_rest;
+    plan.bounded_sub_vertices = bound_adjust_normals(moved, plan.patch_vertex, sub, sharp, render_d, sub_adjust,
+                                                     sub_rest, nullptr, nullptr, &clipped);
+    for (size_t i = 0; i < plan.patch_adjust_normal.size(); ++i) plan.patch_adjust_normal[i] = (float)sub_adjust.corner[i];
   }
   plan.patch_edge = sub.tri_edge;
   plan.patch_edge_reversed.resize(3 * (size_t)P);

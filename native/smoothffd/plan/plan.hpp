@@ -4,10 +4,11 @@
 // uploads them as they are.
 //
 // Pipeline of the plan build (one file each under plan/ and mesh/):
-//   triangulate polygons -> classify sharp edge ends (input split normals) -> crease-aware PN
-//   rest surface -> knot-box clipping (clip vertices moved onto the rest surface, sec. 4.3.1)
-//   -> sub-mesh adjacency and sharpness -> samples (sec. 5.1) -> fitting matrix M_r (Eq. 11)
-//   -> tessellation tables (Eq. 14) and the welded output topology.
+//   triangulate polygons -> classify sharp edge ends (input split normals), flat faces ->
+//   knot-box clipping -> adjustment normals bounded so that nothing folds, crease-aware PN
+//   rest surface (clip vertices moved onto it, sec. 4.3.1) -> sub-mesh adjacency and
+//   sharpness, the bound again on the sub-mesh -> samples (sec. 5.1) -> fitting matrix M_r
+//   (Eq. 11) -> tessellation tables (Eq. 14) and the welded output topology.
 #pragma once
 
 #include <cstdint>
@@ -87,6 +88,10 @@ struct Plan {
   int output_vertices = 0;  // N
   int output_triangles = 0; // T = P L^2
   int render_vertices = 0;  // R >= N (for the output vertices that lie on a patch)
+  int flat_triangles = 0;   // input triangles of flat faces (plan/rest_surface.hpp)
+  int bounded_vertices = 0; // input vertices whose normals were blended toward their
+                            // triangles' own so that no patch folds (AdjustNormals::trust < 1)
+  int bounded_sub_vertices = 0;  // the same on the clipped sub-mesh (its patches at rest)
 
   // --- lattice tables
   std::vector<AxisPieceF> pieces;  // the three axes' pieces, concatenated

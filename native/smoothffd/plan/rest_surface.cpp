@@ -1,6 +1,9 @@
 #include "smoothffd/plan/rest_surface.hpp"
 
+#include <algorithm>
 #include <cmath>
+
+#include "smoothffd/core/parallel.hpp"
 
 #include "smoothffd/plan/bezier.hpp"
 
@@ -45,6 +48,255 @@ void edge_point(const double* a, const double* b, const double* n0, const double
 
 }  // namespace
 
+AdjustNormals::AdjustNormals(const std::vector<double>& X, const std::vector<int>& tv,
+                             const std::vector<double>& base_, const std::vector<uint8_t>& flat_)
+    : base(base_), flat(flat_) {
+  const size_t T = tv.size() / 3, V = X.size() / 3;
+  own.assign(3 * T, 0.0);
+  has_own.assign(T, 0);
+  for (size_t t = 0; t < T; ++t) {
+    const double *a = &X[3 * (size_t)tv[3 * t]], *b = &X[3 * (size_t)tv[3 * t + 1]], *c = &X[3 * (size_t)tv[3 * t + 2]];
+    double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    double* n = &own[3 * t];
+    n[0] = u[1] * w[2] - u[2] * w[1];
+    n[1] = u[2] * w[0] - u[0] * w[2];
+    n[2] = u[0] * w[1] - u[1] * w[0];
+    // Degenerate triangles have no orientation of their own: they keep the input's normals.
+    const double scale = dot3(u, u) + dot3(w, w);
+    has_own[t] = std::sqrt(dot3(n, n)) > 1e-12 * scale && normalize3(n);
+  }
+  trust.assign(V, 1.0);
+  corner.assign(base.size(), 0.0);
+  for (size_t t = 0; t < T; ++t)
+    for (int k = 0; k < 3; ++k) update(tv, (int)t, k);
+}
+
+void AdjustNormals::update(const std::vector<int>& tv, int t, int k) {
+  const double* n = &base[9 * (size_t)t + 3 * k];
+  double* out = &corner[9 * (size_t)t + 3 * k];
+  const double lambda = trust[tv[3 * (size_t)t + k]];
+  if (!has_own[t] || (!flat[t] && lambda >= 1.0)) {
+    for (int i = 0; i < 3; ++i) out[i] = n[i];
+    return;
+  }
+  const double* o = &own[3 * (size_t)t];
+  const double l = flat[t] ? 0.0 : lambda;
+  for (int i = 0; i < 3; ++i) out[i] = l * n[i] + (1.0 - l) * o[i];
+  if (!normalize3(out))
+    for (int i = 0; i < 3; ++i) out[i] = o[i];
+}
+
+namespace {
+
+// Index of the cubic control point with barycentric exponents (i, j, k) (bezier.hpp order).
+int cubic_index(int i, int j, int k) {
+  int e[3];
+  for (int c = 0; c < 10; ++c) {
+    cubic_exponents(c, e);
+    if (e[0] == i && e[1] == j && e[2] == k) return c;
+  }
+  return -1;
+}
+
+// The fold test's grid: 28 barycentric points (6 steps a side) with the 6 quadratic Bernstein
+// values at each, in the order of kQuad.
+struct FoldGrid {
+  static constexpr int kSteps = 4, kPoints = (kSteps + 1) * (kSteps + 2) / 2;
+  double b[kPoints][3];
+  double q[kPoints][6];
+  int quad[6][3];  // exponents of the quadratic terms
+  int plus[6][3];  // cubic control point index of quad term + e_c
+  FoldGrid() {
+    const int qe[6][3] = {{2, 0, 0}, {0, 2, 0}, {0, 0, 2}, {1, 1, 0}, {0, 1, 1}, {1, 0, 1}};
+    for (int t = 0; t < 6; ++t)
+      for (int c = 0; c < 3; ++c) {
+        quad[t][c] = qe[t][c];
+        int e[3] = {qe[t][0], qe[t][1], qe[t][2]};
+        e[c] += 1;
+        plus[t][c] = cubic_index(e[0], e[1], e[2]);
+      }
+    int n = 0;
+    for (int i = 0; i <= kSteps; ++i)
+      for (int j = 0; i + j <= kSteps; ++j, ++n) {
+        b[n][0] = double(kSteps - i - j) / kSteps;
+        b[n][1] = double(i) / kSteps;
+        b[n][2] = double(j) / kSteps;
+        for (int t = 0; t < 6; ++t) {
+          double v = (t < 3 ? 1.0 : 2.0);
+          for (int c = 0; c < 3; ++c)
+            for (int r = 0; r < quad[t][c]; ++r) v *= b[n][c];
+          q[n][t] = v;
+        }
+      }
+  }
+};
+
+// The tessellations of levels 1 .. kFoldLevels: their grid points (cubic Bernstein values at
+// each) and triangles (grid point indices, barycentric centre).
+struct ChordGrid {
+  static constexpr int kLevels = 2;
+  static constexpr int kPoints = 3 + 6;  // (L + 1)(L + 2) / 2 for L = 1 .. 2
+  struct Tri {
+    int v[3];
+    double b[3];
+  };
+  double basis[kPoints][10];
+  std::vector<Tri> tris;
+  ChordGrid() {
+    int base = 0;
+    for (int L = 1; L <= kLevels; ++L) {
+      auto id = [&](int i, int j) { return base + i * (L + 1) - i * (i - 1) / 2 + j; };  // b1 = i, b2 = j
+      for (int i = 0; i <= L; ++i)
+        for (int j = 0; i + j <= L; ++j) {
+          const double b[3] = {double(L - i - j) / L, double(i) / L, double(j) / L};
+          cubic_basis<double>(b, basis[id(i, j)]);
+        }
+      for (int i = 0; i < L; ++i)
+        for (int j = 0; i + j < L; ++j) {
+          Tri up{{id(i, j), id(i + 1, j), id(i, j + 1)}, {}};
+          const double bu[3] = {(3.0 * L - 3 * i - 3 * j - 2) / (3.0 * L), (3.0 * i + 1) / (3.0 * L), (3.0 * j + 1) / (3.0 * L)};
+          for (int c = 0; c < 3; ++c) up.b[c] = bu[c];
+          tris.push_back(up);
+          if (i + j + 1 < L) {
+            Tri dn{{id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)}, {}};
+            const double bd[3] = {(3.0 * L - 3 * i - 3 * j - 4) / (3.0 * L), (3.0 * i + 2) / (3.0 * L), (3.0 * j + 2) / (3.0 * L)};
+            for (int c = 0; c < 3; ++c) dn.b[c] = bd[c];
+            tris.push_back(dn);
+          }
+        }
+      base += (L + 1) * (L + 2) / 2;
+    }
+  }
+};
+
+}  // namespace
+
+bool rest_patch_folds(const double cp[10][3], const double rn[9]) {
+  static const FoldGrid g;
+  // Control nets of the tangents along corner 0 -> 1 and 0 -> 2 (quadratics): 3 (b_{j+e1} -
+  // b_{j+e0}) and 3 (b_{j+e2} - b_{j+e0}); for the flat triangle they are its edges.
+  double t1[6][3], t2[6][3];
+  for (int t = 0; t < 6; ++t)
+    for (int i = 0; i < 3; ++i) {
+      const double base = cp[g.plus[t][0]][i];
+      t1[t][i] = 3.0 * (cp[g.plus[t][1]][i] - base);
+      t2[t][i] = 3.0 * (cp[g.plus[t][2]][i] - base);
+    }
+  double u[3], w[3];
+  for (int i = 0; i < 3; ++i) {
+    u[i] = cp[1][i] - cp[0][i];
+    w[i] = cp[2][i] - cp[0][i];
+  }
+  const double c[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+  const double flat = std::sqrt(dot3(c, c));  // |N| of the flat triangle (tangents u, w)
+  for (int n = 0; n < FoldGrid::kPoints; ++n) {
+    const double* b = g.b[n];
+    double a1[3] = {0, 0, 0}, a2[3] = {0, 0, 0}, m[3];
+    for (int t = 0; t < 6; ++t)
+      for (int i = 0; i < 3; ++i) {
+        a1[i] += g.q[n][t] * t1[t][i];
+        a2[i] += g.q[n][t] * t2[t][i];
+      }
+    const double N[3] = {a1[1] * a2[2] - a1[2] * a2[1], a1[2] * a2[0] - a1[0] * a2[2], a1[0] * a2[1] - a1[1] * a2[0]};
+    for (int k = 0; k < 3; ++k) m[k] = b[0] * rn[k] + b[1] * rn[3 + k] + b[2] * rn[6 + k];
+    const double ln = std::sqrt(dot3(N, N)), lm = std::sqrt(dot3(m, m));
+    if (!(lm > 0)) continue;
+    if (dot3(N, m) < kFoldCos * ln * lm || ln < kCollapse * flat) return true;
+  }
+  // The flat triangles a tessellation of level 1 to kFoldLevels puts through the patch (what
+  // the output is made of) against the normals at their centres, with the same margin.
+  static const ChordGrid chords;
+  double x[ChordGrid::kPoints][3];
+  for (int n = 0; n < ChordGrid::kPoints; ++n)
+    for (int i = 0; i < 3; ++i) {
+      double v = 0;
+      for (int k = 0; k < 10; ++k) v += chords.basis[n][k] * cp[k][i];
+      x[n][i] = v;
+    }
+  for (const ChordGrid::Tri& t : chords.tris) {
+    double u[3], w[3], m[3];
+    for (int i = 0; i < 3; ++i) {
+      u[i] = x[t.v[1]][i] - x[t.v[0]][i];
+      w[i] = x[t.v[2]][i] - x[t.v[0]][i];
+    }
+    const double N[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+    for (int k = 0; k < 3; ++k) m[k] = t.b[0] * rn[k] + t.b[1] * rn[3 + k] + t.b[2] * rn[6 + k];
+    const double ln = std::sqrt(dot3(N, N)), lm = std::sqrt(dot3(m, m));
+    if (lm > 0 && dot3(N, m) < kFoldCos * ln * lm) return true;
+  }
+  return false;
+}
+
+namespace {
+
+// Whether the flat triangle through the rest patch's points at barycentric corners b (3 x 3)
+// turns more than acos(kFoldCos) from the render normal at its centre.
+bool piece_folds(const double cp[10][3], const double rn[9], const double* b) {
+  double x[3][3], m[3] = {0, 0, 0};
+  for (int c = 0; c < 3; ++c) cubic_point(cp, b + 3 * c, x[c]);
+  for (int c = 0; c < 3; ++c)
+    for (int k = 0; k < 3; ++k) m[k] += (b[3 * c] * rn[k] + b[3 * c + 1] * rn[3 + k] + b[3 * c + 2] * rn[6 + k]) / 3.0;
+  double u[3], w[3];
+  for (int i = 0; i < 3; ++i) {
+    u[i] = x[1][i] - x[0][i];
+    w[i] = x[2][i] - x[0][i];
+  }
+  const double N[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+  const double ln = std::sqrt(dot3(N, N)), lm = std::sqrt(dot3(m, m));
+  return lm > 0 && dot3(N, m) < kFoldCos * ln * lm;
+}
+
+}  // namespace
+
+int bound_adjust_normals(const std::vector<double>& X, const std::vector<int>& tv, const EdgeTable& e,
+                         const std::vector<uint8_t>& sharp, const std::vector<double>& render,
+                         AdjustNormals& an, RestSurface& rest, const std::vector<int>* piece_start,
+                         const std::vector<double>* piece_bary, const std::vector<uint8_t>* check) {
+  const int T = (int)(tv.size() / 3), V = (int)(X.size() / 3);
+  std::vector<uint8_t> dirty(check ? *check : std::vector<uint8_t>(T, 1)), lowered(V, 0), folds(T, 0);
+  for (int round = 0;; ++round) {
+    rest = build_rest_surface(X, tv, e, sharp, an.corner);
+    if (round == 64) break;  // each vertex is lowered at most 5 times: never reached
+    parallel_for(T, default_threads(), [&](long long b, long long end) {
+      for (long long t = b; t < end; ++t) {
+        folds[t] = 0;
+        if (!dirty[t] || !an.has_own[t]) continue;
+        double cp[10][3];
+        rest_patch(rest, X, tv, e, (int)t, cp);
+        folds[t] = rest_patch_folds(cp, &render[9 * (size_t)t]);
+        if (piece_start && (*piece_start)[t + 1] - (*piece_start)[t] > 1)
+          for (int q = (*piece_start)[t]; q < (*piece_start)[t + 1] && !folds[t]; ++q)
+            folds[t] = piece_folds(cp, &render[9 * (size_t)t], &(*piece_bary)[9 * (size_t)q]);
+      }
+    });
+    std::fill(dirty.begin(), dirty.end(), 0);
+    std::fill(lowered.begin(), lowered.end(), 0);
+    bool changed = false;
+    for (int t = 0; t < T; ++t) {
+      if (!folds[t]) continue;
+      for (int k = 0; k < 3; ++k) {
+        const int v = tv[3 * (size_t)t + k];
+        if (lowered[v] || an.trust[v] <= 0.0) continue;
+        lowered[v] = 1;
+        an.trust[v] = round >= 4 ? 0.0 : an.trust[v] * 0.5;
+        changed = true;
+      }
+    }
+    if (!changed) break;
+    // The corners at the lowered vertices, and the patches they reach (their edges end
+    // there): every triangle at a lowered vertex.
+    for (int t = 0; t < T; ++t)
+      for (int k = 0; k < 3; ++k)
+        if (lowered[tv[3 * (size_t)t + k]]) {
+          an.update(tv, t, k);
+          dirty[t] = 1;
+        }
+  }
+  int bounded = 0;
+  for (int v = 0; v < V; ++v) bounded += an.trust[v] < 1.0;
+  return bounded;
+}
+
 RestSurface build_rest_surface(const std::vector<double>& X, const std::vector<int>& tv,
                                const EdgeTable& e, const std::vector<uint8_t>& sharp,
                                const std::vector<double>& cn) {
@@ -63,10 +315,8 @@ RestSurface build_rest_surface(const std::vector<double>& X, const std::vector<i
   return rs;
 }
 
-void rest_surface_point(const RestSurface& rs, const std::vector<double>& X,
-                        const std::vector<int>& tv, const EdgeTable& e, int t, const double b[3],
-                        double out[3]) {
-  double cp[10][3];
+void rest_patch(const RestSurface& rs, const std::vector<double>& X, const std::vector<int>& tv,
+                const EdgeTable& e, int t, double cp[10][3]) {
   for (int k = 0; k < 3; ++k)
     for (int i = 0; i < 3; ++i) cp[k][i] = X[3 * (size_t)tv[3 * t + k] + i];
   double E[3] = {0, 0, 0}, V[3] = {0, 0, 0};
@@ -85,12 +335,48 @@ void rest_surface_point(const RestSurface& rs, const std::vector<double>& X,
     }
   }
   for (int i = 0; i < 3; ++i) cp[kCentre][i] = E[i] + (E[i] - V[i]) / 2.0;
+}
+
+void cubic_point(const double cp[10][3], const double b[3], double out[3]) {
   double B[10];
   cubic_basis<double>(b, B);
   for (int i = 0; i < 3; ++i) {
     out[i] = 0;
     for (int k = 0; k < 10; ++k) out[i] += B[k] * cp[k][i];
   }
+}
+
+void cubic_normal(const double cp[10][3], const double b[3], double out[3]) {
+  // d/db_c of each Bernstein term (homogeneous in b), then the tangents along b1 - b0, b2 - b0.
+  double d[3][3] = {};
+  for (int k = 0; k < 10; ++k) {
+    int ex[3];
+    cubic_exponents(k, ex);
+    double coef = (k < 3 ? 1.0 : k == kCentre ? 6.0 : 3.0);
+    for (int c = 0; c < 3; ++c) {
+      if (!ex[c]) continue;
+      double v = coef * ex[c];
+      for (int j = 0; j < 3; ++j)
+        for (int q = 0; q < ex[j] - (j == c); ++q) v *= b[j];
+      for (int i = 0; i < 3; ++i) d[c][i] += v * cp[k][i];
+    }
+  }
+  double t1[3], t2[3];
+  for (int i = 0; i < 3; ++i) {
+    t1[i] = d[1][i] - d[0][i];
+    t2[i] = d[2][i] - d[0][i];
+  }
+  out[0] = t1[1] * t2[2] - t1[2] * t2[1];
+  out[1] = t1[2] * t2[0] - t1[0] * t2[2];
+  out[2] = t1[0] * t2[1] - t1[1] * t2[0];
+}
+
+void rest_surface_point(const RestSurface& rs, const std::vector<double>& X,
+                        const std::vector<int>& tv, const EdgeTable& e, int t, const double b[3],
+                        double out[3]) {
+  double cp[10][3];
+  rest_patch(rs, X, tv, e, t, cp);
+  cubic_point(cp, b, out);
 }
 
 void pn_quadratic_normal(const double P[9], const double N[9], const double b[3], double out[3]) {

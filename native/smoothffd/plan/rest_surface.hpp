@@ -17,6 +17,39 @@
 
 namespace sffd {
 
+// The normals the geometry follows at the corners of a triangle mesh (corner: #T x 3 x 3,
+// unit): the adjustment normals of sec. 4.2 and 4.3.2 and of the rest surface. Shading keeps
+// the input's normals; these start from them (`base`) and differ in two ways:
+//  * A flat triangle (flat[t]: every normal of its face equals the face's own) takes its own
+//    geometric normal at every corner: its edges then stay straight at rest wherever the
+//    neighbour is flat too (both sides' normals are perpendicular to them at a smooth end,
+//    their cross product runs along them at a sharp one), and it deforms as the lattice does,
+//    non-planar polygons included.
+//  * Where the normals would fold a patch, they are blended toward the triangle's own normal:
+//    corner (t, k) at vertex v is normalize(trust_v n + (1 - trust_v) own_t), with trust_v
+//    lowered by bound_adjust_normals until no patch folds (0: every triangle at v follows
+//    its own plane there, as flat triangles do).
+struct AdjustNormals {
+  AdjustNormals(const std::vector<double>& X, const std::vector<int>& tv, const std::vector<double>& base,
+                const std::vector<uint8_t>& flat);
+  void update(const std::vector<int>& tv, int t, int k);  // corner (t, k) from trust
+
+  std::vector<double> base;      // #T x 3 x 3: the normals before bounding
+  std::vector<uint8_t> flat;     // #T
+  std::vector<double> own;       // #T x 3: each triangle's own unit normal
+  std::vector<uint8_t> has_own;  // #T: 0 for a degenerate triangle
+  std::vector<double> trust;     // #V: 1 = the base normals, 0 = each triangle's own
+  std::vector<double> corner;    // #T x 3 x 3: the adjustment normals
+};
+
+// A patch folds where its normal turns more than acos(kFoldCos) (78 degrees) from the render
+// normal field (the shading normals rn interpolated over the triangle), or where it collapses
+// (its normal under kCollapse of the flat triangle's: a corner whose two edge tangents line
+// up); checked on a grid of 28 points, corners and edges included.
+constexpr double kFoldCos = 0.2;
+constexpr double kCollapse = 0.25;
+bool rest_patch_folds(const double cp[10][3], const double rn[9]);
+
 struct RestSurface {
   std::vector<double> edge_cp;  // #E x 2 x 3: control point near end a, near end b
 };
@@ -26,6 +59,33 @@ struct RestSurface {
 RestSurface build_rest_surface(const std::vector<double>& X, const std::vector<int>& tv,
                                const EdgeTable& edges, const std::vector<uint8_t>& sharp,
                                const std::vector<double>& corner_normal);
+
+// Control points of triangle t's rest patch (plan/bezier.hpp order).
+void rest_patch(const RestSurface& rs, const std::vector<double>& X, const std::vector<int>& tv,
+                const EdgeTable& edges, int t, double cp[10][3]);
+
+// A cubic patch's point, and its geometric normal (not normalized: the cross product of the
+// derivatives along corner 0 -> 1 and corner 0 -> 2), at barycentric coordinates b.
+void cubic_point(const double cp[10][3], const double b[3], double out[3]);
+void cubic_normal(const double cp[10][3], const double b[3], double out[3]);
+
+// The patches the evaluators make at rest from positions X, triangles tv and the adjustment
+// normals an.corner (the rest surface's rule: per-edge control points, PN centre) are checked
+// against the render normals (#T x 3 x 3); the trust of the vertices of every triangle whose
+// patch folds is lowered (halved, 0 from the fifth round on) and `rest` rebuilt, until no patch
+// folds or the trust is 0 (straight edges, flat triangles: no fold where the render normals
+// agree with their triangle's orientation). With pieces (triangle t's pieces q in
+// [piece_start[t], piece_start[t + 1]), corners' barycentric points piece_bary[9q ...]: the
+// knot-box clipping), the flat triangles through the rest surface at each piece's corners
+// (what the patches of the pieces start from) must not turn against the normals either.
+// `check` (#T, 0 or 1): the triangles to check at first (default all; a triangle at a vertex
+// whose trust is lowered is checked again anyway). Returns the number of vertices whose
+// trust was lowered.
+int bound_adjust_normals(const std::vector<double>& X, const std::vector<int>& tv, const EdgeTable& edges,
+                         const std::vector<uint8_t>& sharp, const std::vector<double>& render,
+                         AdjustNormals& an, RestSurface& rest, const std::vector<int>* piece_start = nullptr,
+                         const std::vector<double>* piece_bary = nullptr,
+                         const std::vector<uint8_t>* check = nullptr);
 
 // Point of triangle t's rest patch at barycentric coordinates b (of its corners 0, 1, 2).
 void rest_surface_point(const RestSurface& rs, const std::vector<double>& X,

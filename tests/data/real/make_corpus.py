@@ -137,9 +137,10 @@ def lathe():
 
 
 def character():
-    """A low-poly figure in one connected mesh: a flat-shaded torso, hips and legs with
-    jittered (non-planar) quads, arms with flat caps, and a smooth-shaded head and hands;
-    auto smooth 60 degrees inside the smooth parts."""
+    """A low-poly figure: a flat-shaded torso, legs and upper arms with jittered (non-planar)
+    quads, smooth-shaded forearms joined to them (normals split where flat faces meet smooth
+    ones, smooth across the forearms' 90-degree turns), and a smooth UV-sphere head of its own.
+    """
     clear()
     rnd = random.Random(19)
     bm = bmesh.new()
@@ -191,30 +192,19 @@ def character():
         for v in nv:
             v.co = c + (v.co - c) * 0.75 + Vector((sx * 0.35, 0, -0.15))
     bm.normal_update()
-    # Head: the top quads extruded into a narrow neck, then into a block that is subdivided
-    # and cast onto a sphere (smooth shaded below).
+    # Neck: the top quads extruded into a narrow stub; head: a UV sphere above it (its own
+    # closed component), smooth shaded below.
     top = [f for f in bm.faces if f.normal.z > 0.9 and f.calc_center_median().z > 1.85]
     r = bmesh.ops.extrude_face_region(bm, geom=top)
     bmesh.ops.delete(bm, geom=top, context="FACES")
     nv = [e for e in r["geom"] if isinstance(e, bmesh.types.BMVert)]
     c = sum((v.co for v in nv), Vector()) / len(nv)
     for v in nv:
-        v.co = c + (v.co - c) * 0.45 + Vector((0, 0, 0.1))
+        v.co = c + (v.co - c) * 0.45 + Vector((0, 0, 0.12))
     neck_z = max(v.co.z for v in nv)
-    cap = [e for e in r["geom"] if isinstance(e, bmesh.types.BMFace)]
-    r = bmesh.ops.extrude_face_region(bm, geom=cap)
-    bmesh.ops.delete(bm, geom=cap, context="FACES")
-    nv = [e for e in r["geom"] if isinstance(e, bmesh.types.BMVert)]
-    c = sum((v.co for v in nv), Vector()) / len(nv)
-    for v in nv:
-        v.co = c + (v.co - c) * 2.0 + Vector((0, 0, 0.55))
-    head_edges = [e for e in bm.edges if all(v.co.z > neck_z - 1e-6 for v in e.verts)]
-    bmesh.ops.subdivide_edges(bm, edges=head_edges, cuts=2, use_grid_fill=True)
-    centre = Vector((c.x, c.y, neck_z + 0.3))
-    hv = {v for v in bm.verts if v.co.z > neck_z + 1e-6}
-    for v in hv:
-        d = v.co - centre
-        v.co = centre + d.normalized() * 0.36
+    head = bmesh.ops.create_uvsphere(bm, u_segments=16, v_segments=10, radius=0.34)
+    hv = set(head["verts"])
+    bmesh.ops.translate(bm, vec=(0, 0, neck_z + 0.36), verts=list(hv))
     bm.normal_update()
     # Jitter every vertex below the head a little: the flat quads become non-planar.
     for v in bm.verts:
@@ -235,8 +225,8 @@ def character():
     for p in me.polygons:
         # Smooth: the head (above the shoulders) and the hands (the outermost arm segment).
         cz = p.center.z
-        p.use_smooth = cz > neck_z or abs(p.center.x) > 1.05
-    auto_smooth(obj, 60)
+        p.use_smooth = cz > neck_z or abs(p.center.x) > 0.8
+    auto_smooth(obj, 180)  # split only where flat faces meet smooth ones
     export(obj, "figure.obj", uv=False)
 
 

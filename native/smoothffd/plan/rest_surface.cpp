@@ -98,7 +98,7 @@ int cubic_index(int i, int j, int k) {
   return -1;
 }
 
-// The fold test's grid: 28 barycentric points (6 steps a side) with the 6 quadratic Bernstein
+// The fold test's grid: 15 barycentric points (4 steps a side) with the 6 quadratic Bernstein
 // values at each, in the order of kQuad.
 struct FoldGrid {
   static constexpr int kSteps = 4, kPoints = (kSteps + 1) * (kSteps + 2) / 2;
@@ -131,7 +131,7 @@ struct FoldGrid {
   }
 };
 
-// The tessellations of levels 1 .. kFoldLevels: their grid points (cubic Bernstein values at
+// The tessellations of levels 1 .. kLevels: their grid points (cubic Bernstein values at
 // each) and triangles (grid point indices, barycentric centre).
 struct ChordGrid {
   static constexpr int kLevels = 2;
@@ -203,7 +203,7 @@ bool rest_patch_folds(const double cp[10][3], const double rn[9]) {
     if (!(lm > 0)) continue;
     if (dot3(N, m) < kFoldCos * ln * lm || ln < kCollapse * flat) return true;
   }
-  // The flat triangles a tessellation of level 1 to kFoldLevels puts through the patch (what
+  // The flat triangles a tessellation of level 1 to kLevels puts through the patch (what
   // the output is made of) against the normals at their centres, with the same margin.
   static const ChordGrid chords;
   double x[ChordGrid::kPoints][3];

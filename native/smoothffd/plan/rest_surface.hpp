@@ -45,7 +45,8 @@ struct AdjustNormals {
 // A patch folds where its normal turns more than acos(kFoldCos) (78 degrees) from the render
 // normal field (the shading normals rn interpolated over the triangle), or where it collapses
 // (its normal under kCollapse of the flat triangle's: a corner whose two edge tangents line
-// up); checked on a grid of 28 points, corners and edges included.
+// up); checked on a grid of 15 points, corners and edges included, and on the flat triangles
+// of the tessellations of level 1 and 2 (what the output is made of).
 constexpr double kFoldCos = 0.2;
 constexpr double kCollapse = 0.25;
 bool rest_patch_folds(const double cp[10][3], const double rn[9]);

@@ -408,7 +408,8 @@ PYBIND11_MODULE(_core, m) {
       .def(py::init([](std::shared_ptr<Plan> plan, int threads, const std::string& isa) {
              return interruptible([&] { return std::make_shared<CpuEvaluator>(plan, threads, isa); });
            }),
-           py::arg("plan"), py::arg("threads") = 0, py::kw_only(), py::arg("isa") = "auto",
+           // .none(false): None was a null plan and a segfault (found by fuzz_bindings.py)
+           py::arg("plan").none(false), py::arg("threads") = 0, py::kw_only(), py::arg("isa") = "auto",
            py::keep_alive<1, 2>())
       .def_property_readonly("threads", &CpuEvaluator::threads)
       .def_property_readonly("isa", &CpuEvaluator::isa,
@@ -448,7 +449,7 @@ PYBIND11_MODULE(_core, m) {
       .def(py::init([](std::shared_ptr<Plan> plan, const std::string& path, int64_t shared_memory_limit) {
              return std::make_shared<CudaEvaluator>(plan, path, shared_memory_limit);
            }),
-           py::arg("plan"), py::arg("path") = "", py::arg("shared_memory_limit") = 0, py::keep_alive<1, 2>(),
+           py::arg("plan").none(false), py::arg("path") = "", py::arg("shared_memory_limit") = 0, py::keep_alive<1, 2>(),
            "path: 'fused' (or '', the default: one kernel a frame) or 'cublas' (the paper's reference, "
            "needs the toolkit's cuBLAS); shared_memory_limit: 0 (the device's own limits) or the shared "
            "memory (bytes, at least 48 KiB) a block may opt in to on a smaller GPU to emulate: the "

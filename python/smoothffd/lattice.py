@@ -65,6 +65,16 @@ class _Lattice:
         return self._key
 
 
+def _finite(name, what, compute):
+    """compute() in float64 without overflow warnings; a ValueError naming `name` where the
+    result is not finite (values near the float64 limit, e.g. points at 1e308 - -1e308)."""
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
+        value = compute()
+    if not np.isfinite(value).all():
+        raise ValueError(f"{name}: {what} is beyond float64 range (values too large)")
+    return value
+
+
 def _open_uniform_knots(degree, count):
     inner = np.linspace(0.0, 1.0, count - degree + 1)
     return np.concatenate([np.zeros(degree), inner, np.ones(degree)])
@@ -101,7 +111,7 @@ class BSplineLattice(_Lattice):
                 if len(k) != want:
                     raise ValueError(f"knots[{a}]: expected {want} values "
                                      f"(points + degree + 1), got {len(k)}")
-                if np.any(np.diff(k) < 0):
+                if np.any(k[1:] < k[:-1]):  # not np.diff: -1e308 .. 1e308 overflows
                     raise ValueError(f"knots[{a}]: must be non-decreasing")
                 if not k[self.degree[a]] < k[counts[a]]:
                     raise ValueError(f"knots[{a}]: the domain [knots[p], knots[n]] is empty")
@@ -121,13 +131,20 @@ class BSplineLattice(_Lattice):
         self._kv = kv
         lo = np.array([kv[a][self.degree[a]] for a in range(3)])
         hi = np.array([kv[a][counts[a]] for a in range(3)])
-        scale = (hi - lo) / (bmax - bmin)
+        scale = _finite("box_min/box_max", "the map from the box onto the knot domain",
+                        lambda: (hi - lo) / (bmax - bmin))
+        if not (scale > 0).all():
+            raise ValueError("box_min/box_max: the map from the box onto the knot domain "
+                             "underflows (a box far larger than its knot domain)")
         self._map = np.zeros((3, 4))
         for a in range(3):
             self._map[a, a] = scale[a]
-            self._map[a, 3] = lo[a] - bmin[a] * scale[a]
-        self._greville = self._greville_points(kv, counts, lo, hi, bmin, bmax)
-        self._values = cp - self._greville
+            self._map[a, 3] = _finite("box_min/box_max", "the map from the box onto the knot domain",
+                                      lambda: lo[a] - bmin[a] * scale[a])
+        self._greville = _finite("box_min/box_max", "the rest lattice (Greville points in the box)",
+                                 lambda: self._greville_points(kv, counts, lo, hi, bmin, bmax))
+        self._values = _finite("control_points", "control_points - rest lattice",
+                               lambda: cp - self._greville)
         self._spec = _core.LatticeSpec.bspline(list(self.degree), kv, list(counts), self._map)
         self._check_pieces("control_points")
         self._key = ("bspline", self.degree, counts, tuple(tuple(k) for k in kv),
@@ -161,7 +178,7 @@ class BSplineLattice(_Lattice):
         cp = float_array(control_points, "control_points", shape=self.control_points.shape)
         lat = copy.copy(self)
         lat.control_points = cp
-        lat._values = cp - self._greville
+        lat._values = _finite("control_points", "control_points - rest lattice", lambda: cp - self._greville)
         return lat
 
     with_points = with_control_points
@@ -201,9 +218,8 @@ class BlenderLattice(_Lattice):
         m = float_array(lattice_to_object, "lattice_to_object", shape=(4, 4))
         if not np.allclose(m[3], [0, 0, 0, 1]):
             raise ValueError("lattice_to_object: the last row must be (0, 0, 0, 1)")
-        det = np.linalg.det(m[:3, :3])
-        scale = np.abs(m[:3, :3]).max()
-        if not abs(det) > 1e-12 * max(scale, 1e-300) ** 3:
+        scale = np.abs(m[:3, :3]).max()  # det of the scaled matrix: no overflow at 1e200
+        if not (scale > 0 and abs(np.linalg.det(m[:3, :3] / scale)) > 1e-12):
             raise ValueError("lattice_to_object: the matrix is singular")
         self.strength = finite_float(strength, "strength")
         self.rest_points, self.points = rest, pts
@@ -218,13 +234,17 @@ class BlenderLattice(_Lattice):
             f = rest[0, 0, 0, a]
             last = [0, 0, 0]
             last[a] = counts[a] - 1
-            # Spacing over the whole axis (co = f + i d): rounds less than one step does.
-            d = (rest[last[0], last[1], last[2], a] - f) / (counts[a] - 1)
-            if not abs(d) > 0:
-                raise ValueError(f"rest_points: axis {a} has zero spacing")
-            self._map[a, :3] = inv[a, :3] / d
-            self._map[a, 3] = (inv[a, 3] - f) / d
-        self._values = self.strength * np.einsum("rc,uvwc->uvwr", m[:3, :3], pts - rest)
+            with np.errstate(all="ignore"):  # overflow: refused by _finite below
+                # Spacing over the whole axis (co = f + i d): rounds less than one step does.
+                d = (rest[last[0], last[1], last[2], a] - f) / (counts[a] - 1)
+                if not abs(d) > 0:
+                    raise ValueError(f"rest_points: axis {a} has zero spacing")
+                self._map[a, :3] = inv[a, :3] / d
+                self._map[a, 3] = (inv[a, 3] - f) / d
+        _finite("rest_points", "the map into lattice space (lattice_to_object inverse / spacing)",
+                lambda: self._map)
+        self._values = _finite("points", "strength * lattice_to_object (points - rest_points)",
+                               lambda: self.strength * np.einsum("rc,uvwc->uvwr", m[:3, :3], pts - rest))
         self._spec = _core.LatticeSpec.blender(list(interp), list(counts), self._map)
         self._check_pieces("points")
         self._key = ("blender", interp, counts, tuple(self._map.ravel()))
@@ -238,5 +258,6 @@ class BlenderLattice(_Lattice):
         lat = copy.copy(self)
         lat.points = pts
         m = self.lattice_to_object
-        lat._values = self.strength * np.einsum("rc,uvwc->uvwr", m[:3, :3], pts - self.rest_points)
+        lat._values = _finite("points", "strength * lattice_to_object (points - rest_points)",
+                              lambda: self.strength * np.einsum("rc,uvwc->uvwr", m[:3, :3], pts - self.rest_points))
         return lat

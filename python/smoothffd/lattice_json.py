@@ -144,7 +144,7 @@ def parse_lattice(doc, source=None):
                     raise err(f"knots[{a}]",
                               f"expected {want} values (points + degree + 1), got {len(k)}")
                 arr = np.array(k, dtype=np.float64)
-                if (np.diff(arr) < 0).any():
+                if (arr[1:] < arr[:-1]).any():  # not np.diff: -1e308 .. 1e308 overflows
                     raise err(f"knots[{a}]", "must be non-decreasing")
                 if not arr[degree[a]] < arr[shape[a]]:
                     raise err(f"knots[{a}]", "the domain [knots[degree], knots[points]] is empty")
@@ -205,6 +205,8 @@ def load_lattice(path):
         doc = json.loads(text)
     except json.JSONDecodeError as e:
         raise ValueError(f"{path}:{e.lineno}: invalid JSON: {e.msg}") from None
+    except RecursionError:  # "[[[[..." deeper than the interpreter's recursion limit
+        raise ValueError(f"{path}: invalid JSON: nested too deeply") from None
     kind, kwargs = parse_lattice(doc, path)
     try:
         return build_lattice(kind, kwargs)

@@ -227,3 +227,112 @@ def test_normals_that_fold_nothing_are_kept(name):
     mesh = load(name)
     d = smoothffd.Deformer(mesh, lattice_for(mesh), level=1, device="cpu")
     assert d.plan.bounded_vertices == 0 and d.plan.bounded_sub_vertices == 0
+
+
+# ----------------------------------------------------------------------------------------
+# Item 4: exact with any knots.
+
+
+def _knotted(mesh, inner, shift=0.0, scale=1.0, D=None, degree=2):
+    """A B-spline lattice around the mesh with the same inner knots on every axis (clamped
+    ends), moved by `shift` and scaled by `scale`, control points = rest lattice + D."""
+    inner = np.asarray(inner, dtype=np.float64)
+    n = len(inner) - 1 + degree
+    kv = [np.concatenate([np.full(degree, inner[0]), inner, np.full(degree, inner[-1])]) * scale + shift] * 3
+    lo, hi = cli.padded_box(mesh.positions, 0.05)
+    lat = smoothffd.BSplineLattice.identity(lo, hi, shape=(n, n, n), degree=(degree,) * 3, knots=kv)
+    if D is None:
+        D = np.random.default_rng(5).uniform(-0.04, 0.04, (n, n, n, 3)) * np.ptp(mesh.positions)
+    return lat.with_control_points(lat.control_points + D)
+
+
+def _exact_rest(mesh, d, res, level):
+    """Every output vertex's point of the flat input in float64 (Result.rest_positions is
+    float32): its owner patch's corners from plan.patch_sources, the grid point from the
+    float32 position rounded to the level's grid."""
+    tri, bary = d.plan.patch_sources()
+    corners, _ = d.plan.input_triangles()
+    tv = mesh.corner_vertices[corners]
+    rest = np.zeros((len(res.positions), 3))
+    for p in range(len(tri)):
+        pc = bary[p] @ mesh.positions[tv[tri[p]]]
+        vs = np.unique(res.triangles[p * level * level:(p + 1) * level * level])
+        a = np.stack([pc[1] - pc[0], pc[2] - pc[0]], 1)
+        lam = np.linalg.lstsq(a, (res.rest_positions[vs] - pc[0]).T, rcond=None)[0].T
+        rest[vs] = pc[0] + (np.round(lam * level) / level) @ a.T
+    return rest
+
+
+@pytest.mark.parametrize("name", ["rock", "suzanne", "figure"])
+def test_shifting_or_scaling_knots_changes_nothing(name):
+    """The same deformation with every knot shifted (to 1e7) or scaled (1e-4 .. 1e4): the same
+    output within float rounding, and the double-precision lattice.evaluate agrees too (it
+    took points within 1e-9 |s| of a plane as on it: 3e-4 off at a shift of 1e7)."""
+    mesh = load(name)
+    inner = [0.0, 0.2, 0.45, 0.5, 0.8, 1.0]
+    base = _knotted(mesh, inner)
+    ref = smoothffd.Deformer(mesh, base, level=3, device="cpu").deform()
+    size = np.linalg.norm(np.ptp(mesh.positions, axis=0))
+    f0 = base.evaluate(mesh.positions)[0]
+    for shift, scale in ((1e3, 1), (1e5, 1), (1e7, 1), (0, 1e-4), (0, 1e4), (-3e4, 7)):
+        lat = _knotted(mesh, inner, shift, scale)
+        res = smoothffd.Deformer(mesh, lat, level=3, device="cpu").deform()
+        assert res.positions.shape == ref.positions.shape
+        err = np.abs(res.positions - ref.positions).max() / size
+        assert err < 2e-6, (shift, scale, err)  # before: 2.5e-4 at 1e5, hundreds at 1e7
+        assert np.abs(lat.evaluate(mesh.positions)[0] - f0).max() / size < 1e-9, (shift, scale)
+
+
+def test_tiny_spans_next_to_large_ones_stay_accurate():
+    """Two adjacent knot spans of 1e-7 among spans of 0.2 .. 0.5 (a knot of multiplicity 3,
+    spread by rounding: the deformation jumps across them), on a unit sphere: the output
+    against the exact FFD of its own points of the flat input (in double) 0.0046 (before
+    0.043, 0.65 with the knots shifted by 1e5), and the same after shifting or scaling."""
+    import meshes
+
+    mesh = meshes.sphere_mesh(3)
+    inner = [0.0, 0.3, 0.5, 0.5 + 1e-7, 0.5 + 2e-7, 1.0]
+    rng = np.random.default_rng(4)
+    D = rng.uniform(-0.1, 0.1, (7, 7, 7, 3))
+    for shift, scale in ((0, 1), (1e5, 1), (0, 1e-3), (0, 1e4)):
+        lat = _knotted(mesh, inner, shift, scale, D=D)
+        d = smoothffd.Deformer(mesh, lat, level=3, device="cpu")
+        res = d.deform()
+        exact = lat.evaluate(_exact_rest(mesh, d, res, 3))[0]
+        assert np.abs(res.positions - exact).max() < 0.01, (shift, scale)
+        V = len(mesh.positions)
+        assert np.abs(res.positions[:V] - lat.evaluate(mesh.positions)[0]).max() < 1e-6
+
+
+def test_mesh_far_from_the_origin():
+    """A mesh 1000 away from the origin in a fine cubic lattice (40^3 points): each sample's
+    local coordinate comes from the plan in double, so the deformed input vertices are within
+    one float32 step of their exact images (before: 1.4 steps)."""
+    mesh = load("rock")
+    far = smoothffd.Mesh(mesh.positions + 1e3, (mesh.corner_vertices, mesh.face_offsets),
+                         corner_normals=mesh.corner_normals)
+    lo, hi = cli.padded_box(far.positions, 0.05)
+    lat = smoothffd.BSplineLattice.identity(lo, hi, shape=(40, 40, 40), degree=(3, 3, 3))
+    lat = lat.with_control_points(lat.control_points +
+                                  np.random.default_rng(1).uniform(-0.03, 0.03, (40, 40, 40, 3)))
+    res = smoothffd.Deformer(far, lat, level=2, device="cpu").deform()
+    V = len(mesh.positions)
+    assert np.abs(res.positions[:V] - lat.evaluate(far.positions)[0]).max() <= np.spacing(np.float32(1e3))
+
+
+def test_unrepresentable_magnitudes_are_refused_by_name():
+    """What float evaluation cannot represent is refused with a ValueError that names the
+    argument and says why, never NaN."""
+    mesh = load("cube")
+    with pytest.raises(ValueError, match=r"lattice: axis u has a knot span of width 5e\+38 .* beyond "
+                                         r"what float evaluation can represent"):
+        smoothffd.Deformer(mesh, _knotted(mesh, [0.0, 0.5, 1.0], scale=1e39), level=1, device="cpu")
+    with pytest.raises(ValueError, match=r"knots\[0\]: the domain .* is empty"):
+        _knotted(mesh, [0.0, 0.5, 1.0], shift=1e17)  # every knot rounds to 1e17
+    with pytest.raises(ValueError, match=r"positions up to 1e\+39 exceed the float32 range"):
+        huge = smoothffd.Mesh(mesh.positions * 1e39, (mesh.corner_vertices, mesh.face_offsets))
+        smoothffd.Deformer(huge, _knotted(mesh, [0.0, 0.5, 1.0]), level=1, device="cpu")
+    for shift, scale in ((1e12, 1), (0, 1e-20), (0, 1e25)):  # extreme but representable: finite
+        res = smoothffd.Deformer(mesh, _knotted(mesh, [0.0, 0.5, 1.0], shift, scale), level=2,
+                                 device="cpu").deform()
+        assert np.isfinite(res.positions).all() and np.isfinite(res.corner_normals).all()

@@ -126,6 +126,7 @@ struct CudaEvaluator::Impl {
     v.sample_position = a.upload(p.sample_position);
     v.sample_piece = a.upload(p.sample_piece);
     v.sample_weight = a.upload(p.sample_weight);
+    v.sample_local = p.sample_local.empty() ? nullptr : a.upload(p.sample_local);
     v.fit_matrix = a.upload(p.fit_matrix);
     v.column_bary = a.upload(p.column_bary);
     v.patch_samples = a.upload(p.patch_samples);

@@ -334,6 +334,12 @@ DeviceTables build_device_tables(const Plan& p, const TessellationTables& tt) {
     t.no_inline = "the plan's constraint columns are not where the inline kernel reads them";
     return t;
   }
+  if (!p.sample_local.empty()) {
+    // The inline kernel places each sample and computes its t from the position in float;
+    // the reference kernels read the plan's local coordinates as the CPU does (stages.hpp).
+    t.no_inline = "knot spans too small for float positions: the samples' local coordinates come from the plan";
+    return t;
+  }
   // The boxes that hold samples, numbered in order of first use; box_of[s]: sample s's.
   std::vector<uint32_t> box_of((size_t)p.samples);
   {

@@ -71,15 +71,17 @@ namespace {
 template <int C, bool kJacobian>
 void sample_lanes(const PlanView& pv, const float* D, const int* ids, int n, float* value,
                   float* jacobian) {
-  Lanes p[3], weight;
+  Lanes p[3], weight, local[3];
   for (int l = 0; l < kLanes; ++l) {
     int s = ids[l < n ? l : n - 1];  // a short batch repeats its last sample
     for (int a = 0; a < 3; ++a) p[a].set(l, pv.sample_position[3 * (long long)s + a]);
     weight.set(l, pv.sample_weight[s]);
+    if (pv.sample_local)
+      for (int a = 0; a < 3; ++a) local[a].set(l, pv.sample_local[3 * (long long)s + a]);
   }
   int idx[3][C];
   Lanes w[3][C], dw[3][C], val[3], grad[9], A[9], F[3], J[9];
-  sample_weights<C, Lanes>(pv, p, pv.sample_piece[ids[0]], idx, w, dw);
+  sample_weights<C, Lanes>(pv, p, pv.sample_piece[ids[0]], idx, w, dw, pv.sample_local ? local : nullptr);
   tensor_eval_fixed<Lanes, float, C, C, C>(idx[0], w[0], dw[0], idx[1], w[1], dw[1], idx[2], w[2],
                                            dw[2], D, pv.dims[1], pv.dims[2], val, grad);
   for (int r = 0; r < 3; ++r)

@@ -18,6 +18,7 @@ struct PlanView {
   const float* sample_position;
   const uint32_t* sample_piece;
   const float* sample_weight;
+  const float* sample_local;  // S x 3, or null: t of each sample in its pieces (Plan::sample_local)
   const float* fit_matrix;
   const float* column_bary;
   const int* patch_samples;
@@ -76,6 +77,7 @@ inline PlanView host_view(const Plan& p) {
   v.sample_position = p.sample_position.data();
   v.sample_piece = p.sample_piece.data();
   v.sample_weight = p.sample_weight.data();
+  v.sample_local = p.sample_local.empty() ? nullptr : p.sample_local.data();
   v.fit_matrix = p.fit_matrix.data();
   v.column_bary = p.column_bary.data();
   v.patch_samples = p.patch_samples.data();

@@ -23,15 +23,22 @@ SFFD_ISA_BEGIN
 // memory). Terms beyond a piece's count get weight 0: its coefficients are 0 there, and the
 // evaluators only use C >= every count of the plan. Returns the largest count of the three.
 // T = float, or Lanes (eval/lanes.hpp) for several samples of one lattice box at once.
+// local: the sample's local coordinate in each piece from the plan (Plan::sample_local), used
+// instead of t from the position where the plan has them (spans too small for float).
 template <int C, class T = float>
 SFFD_HD int sample_weights(const PlanView& pv, const T p[3], uint32_t packed, int idx[3][C],
-                           T w[3][C], T dw[3][C]) {
+                           T w[3][C], T dw[3][C], const T* local = nullptr) {
   int count = 0;
 SFFD_UNROLL
   for (int a = 0; a < 3; ++a) {
     const AxisPieceF& pc = pv.pieces[pv.axis_offset[a] + ((packed >> (10 * a)) & 1023u)];
     const float* m = pv.param_map + 4 * a;
-    T t = ((m[0] * p[0] + m[1] * p[1] + m[2] * p[2] + m[3]) - pc.origin) * pc.inv_scale;
+    T t;
+    if (local) {
+      t = local[a];
+    } else {
+      t = ((m[0] * p[0] + m[1] * p[1] + m[2] * p[2] + m[3]) - pc.origin) * pc.inv_scale;
+    }
     if (pc.degree == 0) t = 0.0f;
     count = pc.count > count ? pc.count : count;
 SFFD_UNROLL
@@ -60,7 +67,8 @@ SFFD_HD void sample_point(const PlanView& pv, const float* D, int s, float* F, f
   float p[3] = {pv.sample_position[3 * s], pv.sample_position[3 * s + 1], pv.sample_position[3 * s + 2]};
   int idx[3][kMaxTerms];
   float w[3][kMaxTerms], dw[3][kMaxTerms], value[3], grad[9];
-  int count = sample_weights<kMaxTerms>(pv, p, pv.sample_piece[s], idx, w, dw);
+  const float* local = pv.sample_local ? pv.sample_local + 3 * (long long)s : nullptr;
+  int count = sample_weights<kMaxTerms>(pv, p, pv.sample_piece[s], idx, w, dw, local);
   tensor_eval<float, float>(idx[0], w[0], dw[0], idx[1], w[1], dw[1], idx[2], w[2], dw[2], count, D,
                             pv.dims[1], pv.dims[2], value, grad);
   finish_sample(pv, p, s, value, grad, F, J);
@@ -74,7 +82,8 @@ SFFD_HD void sample_point_fixed(const PlanView& pv, const float* D, int s, float
   float p[3] = {pv.sample_position[3 * s], pv.sample_position[3 * s + 1], pv.sample_position[3 * s + 2]};
   int idx[3][C];
   float w[3][C], dw[3][C], value[3], grad[9];
-  sample_weights<C>(pv, p, pv.sample_piece[s], idx, w, dw);
+  const float* local = pv.sample_local ? pv.sample_local + 3 * (long long)s : nullptr;
+  sample_weights<C>(pv, p, pv.sample_piece[s], idx, w, dw, local);
   tensor_eval_fixed<float, float, C, C, C>(idx[0], w[0], dw[0], idx[1], w[1], dw[1], idx[2], w[2], dw[2], D,
                                            pv.dims[1], pv.dims[2], value, grad);
   finish_sample(pv, p, s, value, grad, F, J);

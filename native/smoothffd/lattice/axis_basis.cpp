@@ -213,6 +213,8 @@ void AxisBasis::finish() {
     merged.push_back(pc);
   }
   pieces_ = merged;
+  extent_ = pieces_.size() > 2 ? pieces_.back().lo - pieces_[1].lo : 1.0;
+  if (!(extent_ > 0) || !std::isfinite(extent_)) extent_ = 1.0;
   degree_ = 0;
   for (const AxisPiece& pc : pieces_) degree_ = std::max(degree_, pc.degree);
 }
@@ -233,7 +235,10 @@ int AxisBasis::find_piece(double s) const {
   // does for exact values), except on the top of the polynomial range, which takes the piece
   // inside: vertices fitted to a lattice's or a box's faces get the one-sided inner Jacobian,
   // whatever the rounding of s = A p + b.
-  const double eps = 1e-9 * (1.0 + std::abs(s));
+  // Rounding of s = A p + b in double is about 1e-16 |s|; 1e-9 of the axis's polynomial range
+  // on top (not 1e-9 |s|: with knots shifted to 1e7 that took points 0.01 off a plane as on it,
+  // and extrapolated the next piece's polynomial there, 3e-4 off in a lattice 2 wide).
+  const double eps = 1e-9 * extent_ + 8 * std::numeric_limits<double>::epsilon() * std::abs(s);
   int last = (int)pieces_.size() - 1;
   if (lo < last && pieces_[lo + 1].lo - s <= eps) ++lo;
   if (lo == last && lo > 0 && pieces_[lo].degree == 0 && pieces_[lo - 1].degree > 0 &&

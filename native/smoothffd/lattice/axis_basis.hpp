@@ -56,6 +56,7 @@ class AxisBasis {
   void finish();  // merge duplicate indices, drop zero terms, merge equal constant pieces
   int n_ctrl_ = 0;
   int degree_ = 0;
+  double extent_ = 1.0;  // from the first to the last plane (1 with fewer than two planes)
   std::vector<AxisPiece> pieces_;
 };
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <tuple>
 
@@ -41,16 +42,16 @@ struct Clipper {
   }
 
   // Side of sub-vertex id of the plane s_a = c: -1, +1, or 0 where it counts as on the plane.
-  // Within rounding; else, for the plane of axis a nearest to the vertex only (a vertex snaps
-  // to one plane an axis: snapping a fan of planes onto one vertex would make needles of the
-  // pieces between them), input vertices when the plane crosses one of their edges within
-  // kClipEdgeSnap of its length from them or runs along one within that, clip vertices within
-  // their snap distance.
+  // Within rounding; else, where may_snap allows (the plane of axis a nearest to the vertex
+  // only: snapping a fan of planes onto one vertex would make needles of the pieces between
+  // them; and within a quarter of that plane's gap to the next), input vertices when the plane
+  // crosses one of their edges within kClipEdgeSnap of its length from them or runs along one
+  // within that, clip vertices within their snap distance.
   int side_of(int id, int a, double c) const {
     const double d = s(id)[a] - c;
     if (std::fabs(d) <= floor_tol[a]) return 0;
     const int side = d < 0 ? -1 : 1;
-    if (!nearest_plane(a, s(id)[a], c)) return side;
+    if (!may_snap(a, s(id)[a], c)) return side;
     if (id >= inputs) return std::fabs(d) <= reach[3 * (size_t)id + a] ? 0 : side;
     for (int i = ring_start[id]; i < ring_start[id + 1]; ++i) {
       const double dw = s(ring[i])[a] - c;
@@ -64,14 +65,23 @@ struct Clipper {
     return side;
   }
 
-  // Whether c is the plane of axis a nearest to parameter value x (ties: the lower).
-  bool nearest_plane(int a, double x, double c) const {
+  // Whether a vertex at parameter value x may snap to plane c of axis a: c is the plane
+  // nearest to x (ties: the lower), and x lies within a quarter of c's distance to its
+  // neighbouring planes, so a piece never reaches across more than a quarter of a knot span
+  // (planes closer together than that, as knots of high multiplicity spread by rounding, are
+  // kept apart: the deformation may change fast between them).
+  bool may_snap(int a, double x, double c) const {
     const std::vector<double>& pl = planes[a];
     auto it = std::lower_bound(pl.begin(), pl.end(), x);
     double best = INFINITY, at = 0;
     if (it != pl.end()) best = *it - x, at = *it;
     if (it != pl.begin() && x - *(it - 1) <= best) at = *(it - 1);
-    return at == c;
+    if (at != c) return false;
+    auto ci = std::lower_bound(pl.begin(), pl.end(), c);
+    double gap = INFINITY;
+    if (ci != pl.begin()) gap = c - *(ci - 1);
+    if (ci + 1 != pl.end()) gap = std::min(gap, *(ci + 1) - c);
+    return std::fabs(x - c) <= 0.25 * gap;
   }
 
   // The vertex where the segment u-v crosses plane `pi` (value c) of axis a. Computed from the
@@ -230,7 +240,10 @@ ClipResult clip_to_knot_boxes(const std::vector<double>& X, const std::vector<in
     for (size_t i = 1; i < planes[a].size(); ++i)
       spacing = std::min(spacing, planes[a][i] - planes[a][i - 1]);
     double mag = planes[a].empty() ? 0.0 : std::max(std::fabs(planes[a].front()), std::fabs(planes[a].back()));
-    tol[a] = std::max(1e-5 * spacing, 1e-12 * (1.0 + mag));
+    // The second term is the rounding of s = A p + b in double, which grows with |s| (knots
+    // far from 0), plus 1e-12 of the planes' extent: no larger for shifted knots.
+    const double extent = planes[a].size() > 1 ? planes[a].back() - planes[a].front() : 1.0;
+    tol[a] = std::max(1e-5 * spacing, 1e-12 * extent + 16 * std::numeric_limits<double>::epsilon() * mag);
     c.floor_tol[a] = tol[a];
     const double* A = lattice.object_to_param[a];
     c.grad[a] = std::sqrt(A[0] * A[0] + A[1] * A[1] + A[2] * A[2]);

@@ -19,7 +19,10 @@
 //     least that far apart;
 //   * any vertex: within rounding (1e-5 of the smallest knot spacing, float32 noise).
 // Of each axis only the plane nearest to the vertex snaps (beyond rounding): where planes are
-// closer together than that, a fan of cuts through one vertex would leave needles between them.
+// closer together than that, a fan of cuts through one vertex would leave needles between them;
+// and only within a quarter of that plane's gap to its neighbours, so no piece reaches across
+// more than a quarter of a knot span (knots of high multiplicity spread by a tiny amount make
+// the deformation change fast between their planes: those pieces stay exact, thin as they are).
 // Each decision depends only on the vertex, its neighbours and the plane, so every triangle
 // and piece around a vertex decides alike and the sub-mesh stays watertight (the pieces of a
 // polygon whose snapped vertices put it on both sides of a plane are split so that each edge

@@ -262,11 +262,14 @@ void check_float_range(const LatticeSpec& lattice) {
       bool ok = finite_float(pc.origin) && finite_float(1.0 / pc.scale);
       for (int k = 0; k < kMaxTerms && ok; ++k)
         for (int q = 0; q < kMaxTerms && ok; ++q) ok = finite_float(pc.coef[k][q]);
-      if (!ok)
-        throw std::invalid_argument(std::string("lattice: axis ") + axis[a] + " has a knot span of width " +
-                                    std::to_string(pc.scale) + " at " + std::to_string(pc.origin) +
-                                    ", beyond what float evaluation can represent (spans and knots "
-                                    "between about 1e-30 and 1e30)");
+      if (!ok) {
+        char msg[300];
+        std::snprintf(msg, sizeof(msg),
+                      "lattice: axis %c has a knot span of width %.6g at %.6g, beyond what float "
+                      "evaluation can represent (spans and knots between about 1e-30 and 1e30)",
+                      axis[a], pc.scale, pc.origin);
+        throw std::invalid_argument(msg);
+      }
     }
     for (int c = 0; c < 4; ++c)
       if (!finite_float(lattice.object_to_param[a][c]))
@@ -275,12 +278,40 @@ void check_float_range(const LatticeSpec& lattice) {
   }
 }
 
+// The shift step 7 measures an axis's float parameter from: its first knot plane when that
+// lies further from 0 than the planes' extent, else 0.
+double float_shift(const AxisBasis& axis) {
+  const std::vector<double> planes = axis.planes();
+  if (!planes.empty() && std::fabs(planes.front()) > planes.back() - planes.front()) return planes.front();
+  return 0.0;
+}
+
+// Whether the float evaluation of t = (s(p) - origin) / scale from a sample's float position
+// loses more than 2^-11 of some span: its rounding is about 2^-24 (|ds/dp| |p| + |b - shift| +
+// |origin - shift|) / scale (knot spans small next to the mesh's distance from 0, or to the
+// others: then each sample's t is computed in double at plan time).
+bool needs_local_coordinates(const LatticeSpec& lattice, const std::vector<double>& pos) {
+  double R = 0;
+  for (double x : pos) R = std::max(R, std::fabs(x));
+  for (int a = 0; a < 3; ++a) {
+    const double* A = lattice.object_to_param[a];
+    const double G = std::fabs(A[0]) + std::fabs(A[1]) + std::fabs(A[2]);
+    const double shift = float_shift(lattice.axes[a]);
+    for (const AxisPiece& pc : lattice.axes[a].pieces()) {
+      if (pc.degree == 0) continue;
+      const double err = G * R + std::fabs(A[3] - shift) + std::fabs(pc.origin - shift);
+      if (err > std::ldexp(pc.scale, 13)) return true;
+    }
+  }
+  return false;
+}
+
 }  // namespace
 
 size_t Plan::bytes() const {
   size_t b = 0;
   b += pieces.size() * sizeof(AxisPieceF);
-  b += 4 * (sample_position.size() + sample_piece.size() + sample_weight.size() +
+  b += 4 * (sample_position.size() + sample_piece.size() + sample_weight.size() + sample_local.size() +
             fit_matrix.size() + column_bary.size() + patch_samples.size() + patch_vertex.size() +
             patch_edge.size() + patch_render_normal.size() + patch_adjust_normal.size() +
             patch_face.size() + edge_vertex.size() + edge_constraint.size() + edge_patch.size() +
@@ -489,9 +520,13 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   const long long S = (long long)SV + (long long)E * ES + (long long)P * IS;
   if (S > 2000000000LL) throw std::invalid_argument("mesh: too large for one plan");
   plan.sample_position.resize(3 * S);
+  std::vector<double> sample_exact(3 * S);  // the positions before rounding to float
   plan.sample_weight.resize(S);
   auto put_sample = [&](long long s, const double* pos, double w) {
-    for (int i = 0; i < 3; ++i) plan.sample_position[3 * s + i] = (float)pos[i];
+    for (int i = 0; i < 3; ++i) {
+      plan.sample_position[3 * s + i] = (float)pos[i];
+      sample_exact[3 * s + i] = pos[i];
+    }
     plan.sample_weight[s] = (float)w;
   };
   for (int v = 0; v < SV; ++v) put_sample(v, &moved[3 * (size_t)v], sub_weight[v]);
@@ -541,17 +576,29 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
     plan.edge_constraint[2 * e] = SV + e * ES + edge_index(n);
     plan.edge_constraint[2 * e + 1] = SV + e * ES + edge_index(2 * n);
   }
+  // Each sample's piece, and where the evaluators' float arithmetic (t from the float position
+  // and the float map, about 6e-8 (|ds/dp| |p| + |s - shift| + |origin - shift|) / span of
+  // the span) cannot place a sample within 2^-11 of its span, each sample's local coordinate t
+  // in its span, computed here in double from its exact position (sample_local).
+  const bool local = needs_local_coordinates(lattice, sample_exact);
   plan.sample_piece.resize(S);
+  if (local) plan.sample_local.resize(3 * S);
   parallel_for(S, default_threads(), [&](long long b, long long e) {
     for (long long s = b; s < e; ++s) {
       double pos[3], prm[3];
       int pc[3];
-      for (int i = 0; i < 3; ++i) pos[i] = plan.sample_position[3 * s + i];
+      for (int i = 0; i < 3; ++i) pos[i] = local ? sample_exact[3 * s + i] : plan.sample_position[3 * s + i];
       lattice.to_param(pos, prm);
       lattice.find_pieces(prm, pc);
       plan.sample_piece[s] = pack_pieces(pc);
+      if (local)
+        for (int a = 0; a < 3; ++a) {
+          const AxisPiece& piece = lattice.axes[a].pieces()[pc[a]];
+          plan.sample_local[3 * s + a] = piece.degree == 0 ? 0.0f : (float)((prm[a] - piece.origin) / piece.scale);
+        }
     }
   });
+  std::vector<double>().swap(sample_exact);
   plan.fit_matrix.assign(fit.M_r.begin(), fit.M_r.end());
   plan.column_bary.resize(3 * (size_t)K);
   for (int i = 0; i < 3 * K; ++i) plan.column_bary[i] = (float)(fit.numerator[i] / double(N3));
@@ -639,9 +686,7 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   for (int a = 0; a < 3; ++a) {
     plan.axis_offset[a] = (int)plan.pieces.size();
     plan.dims[a] = lattice.axes[a].n_ctrl();
-    const std::vector<double> planes = lattice.axes[a].planes();
-    double shift = 0;
-    if (!planes.empty() && std::fabs(planes.front()) > planes.back() - planes.front()) shift = planes.front();
+    const double shift = float_shift(lattice.axes[a]);
     for (const AxisPiece& pc : lattice.axes[a].pieces()) {
       AxisPieceF f{};
       f.origin = (float)(pc.origin - shift);

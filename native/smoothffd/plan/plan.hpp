@@ -103,6 +103,10 @@ struct Plan {
   std::vector<float> sample_position;  // S x 3: rest point (clip vertices on the rest surface)
   std::vector<uint32_t> sample_piece;  // S: piece per axis, 10 bits each (relative to axis)
   std::vector<float> sample_weight;    // S: per-vertex deformation factor, interpolated
+  std::vector<float> sample_local;     // S x 3 or empty: each sample's local coordinate t in its
+                                       // piece of each axis, computed in double, where t from the
+                                       // float position would not resolve the spans (knot spans
+                                       // tiny next to the mesh's coordinates, or to the others)
 
   // --- constrained fitting (Eqs. 11-13)
   std::vector<float> fit_matrix;     // 10 x K (M_r)

@@ -2,7 +2,8 @@
 identity lattice, a 45-degree twist and a 40-degree bend (5x5x5 quadratic B-spline around the
 mesh, as `python3 -m smoothffd quality` makes it) at levels 1, 3 and 6, measured by
 smoothffd.metrics.quality. Prints a markdown table (one row per mesh and lattice) for
-docs/results.md; --json writes every measure.
+docs/results.md (scripts/report.py puts it there, beside quality_corpus_before.json: the same
+measures of the core before issue 19's fixes); --json writes every measure.
 
     PYTHONPATH=python /usr/bin/python3 scripts/quality_corpus.py [--json OUT.json]
 """
@@ -47,32 +48,45 @@ def measure(name, mode=None, amount=0.0, levels=LEVELS, device="cpu"):
     return out
 
 
+def measure_all():
+    """Every mesh, lattice and level: a list of dicts (mesh, lattice, level, Quality's fields)."""
+    rows = []
+    for name in MESHES:
+        for label, mode, amount in LATTICES:
+            rows += [dict(mesh=name, lattice=label, level=L, **q._asdict())
+                     for L, q in measure(name, mode, amount)]
+    return rows
+
+
+def table(rows):
+    """Markdown table of measure_all's rows, one line per mesh and lattice."""
+    out = ["| mesh | lattice | reversed L = 1 / 3 / 6 | tiny L = 6 | smallest angle (input) | "
+           "largest aspect | flat: off the surface / whole distance | volume change L = 6 |",
+           "|---|---|---|---|---|---|---|---|"]
+    groups = {}
+    for r in rows:
+        groups.setdefault((r["mesh"], r["lattice"]), {})[r["level"]] = r
+    for (name, label), q in groups.items():
+        ms = [q[L] for L in LEVELS]
+        vol = q[LEVELS[-1]]["volume_change"]
+        out.append(
+            f"| {name} | {label} | {' / '.join(str(q[L]['reversed']) for L in LEVELS)} | "
+            f"{q[LEVELS[-1]]['tiny']} | {min(x['min_angle'] for x in ms):.3g}° "
+            f"({ms[0]['input_min_angle']:.3g}°) | {max(x['max_aspect'] for x in ms):.4g} | "
+            f"{max(x['flat_deviation'] for x in ms):.2g} / {max(x['flat_slide'] for x in ms):.2g} | "
+            + (f"{vol:+.2g} |" if vol is not None else "open |"))
+    return "\n".join(out)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--json", metavar="OUT.json")
     a = ap.parse_args()
-    rows, dump = [], []
-    for name in MESHES:
-        for label, mode, amount in LATTICES:
-            ms = measure(name, mode, amount)
-            dump += [dict(mesh=name, lattice=label, level=L, **q._asdict()) for L, q in ms]
-            q = dict(ms)
-            vol = [x.volume_change for _, x in ms if x.volume_change is not None]
-            rows.append(
-                f"| {name} | {label} | {' / '.join(str(q[L].reversed) for L in LEVELS)} | "
-                f"{q[6].tiny} | {min(x.min_angle for _, x in ms):.3g}° "
-                f"({ms[0][1].input_min_angle:.3g}°) | {max(x.max_aspect for _, x in ms):.4g} | "
-                f"{max(x.flat_deviation for _, x in ms):.2g} / "
-                f"{max(x.flat_slide for _, x in ms):.2g} | "
-                + (f"{vol[-1]:+.2g} |" if vol else "open |"))
-            print(rows[-1], file=sys.stderr)
-    print("| mesh | lattice | reversed L = 1 / 3 / 6 | tiny L = 6 | smallest angle (input) | "
-          "largest aspect | flat: off the surface / whole distance | volume change L = 6 |")
-    print("|---|---|---|---|---|---|---|---|")
-    print("\n".join(rows))
+    rows = measure_all()
+    print(table(rows))
     if a.json:
         with open(a.json, "w") as f:
-            json.dump(dump, f, indent=1, default=float)
+            json.dump(rows, f, indent=1, default=float)
 
 
 if __name__ == "__main__":

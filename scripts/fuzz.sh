@@ -1,12 +1,18 @@
 #!/usr/bin/env bash
-# Bounded fuzzing (about a minute in all): the libFuzzer target over plan build + CPU evaluation
-# (native/fuzz/fuzz_plan.cpp, clang++ -fsanitize=fuzzer,address,undefined; the core's sources
-# but the CUDA backend's) and the OBJ reader (native/fuzz/fuzz_obj.py: atheris when build/venv-fuzz has it, else a seeded mutation loop).
-# Seeds: native/fuzz/corpus/{plan,obj}; new inputs go to build/fuzz/corpus-*, crashes to
-# build/fuzz/crash-*. FUZZ_SECONDS (default 30) per target. Exit status non-zero on any crash.
+# Bounded fuzzing (about two minutes in all): the libFuzzer target over plan build + CPU
+# evaluation (native/fuzz/fuzz_plan.cpp, clang++ -fsanitize=fuzzer,address,undefined; the core's
+# sources but the CUDA backend's), the OBJ reader (native/fuzz/fuzz_obj.py: atheris when
+# build/venv-fuzz has it, else a seeded mutation loop), the lattice JSON reader
+# (fuzz_lattice_json.py, the same two engines), the command line's argument handling
+# (fuzz_cli.py, in process) and the bindings' argument conversion (fuzz_bindings.py, in a child
+# process so that a segfault is caught).
+# Seeds: native/fuzz/corpus/{plan,obj,lattice}; new inputs go to build/fuzz/corpus-*, crashes to
+# build/fuzz/crash-*. FUZZ_SECONDS (default 30) for fuzz_plan and fuzz_obj, FUZZ_PY_SECONDS
+# (default half of it) for each of the other three. Exit status non-zero on any crash.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SECS=${FUZZ_SECONDS:-30}
+PY_SECS=${FUZZ_PY_SECONDS:-$((SECS / 2))}
 OUT=build/fuzz
 mkdir -p "$OUT/obj" "$OUT/corpus-plan" "$OUT/corpus-obj"
 rm -f "$OUT"/crash-*  # artifacts of this run only
@@ -36,4 +42,15 @@ PY=/usr/bin/python3
 PYTHONPATH=python "$PY" native/fuzz/fuzz_obj.py --seconds "$SECS" --corpus native/fuzz/corpus/obj --out "$OUT" 2>&1 \
   | grep -E "^fuzz_obj|^#[0-9]+ *(DONE|INITED)|stat::|Error|Traceback|^  |CRASH|Test unit written" || true
 if ls "$OUT"/crash-obj-* >/dev/null 2>&1; then echo "fuzz_obj: CRASH (see $OUT/crash-obj-*)"; exit 1; fi
+for target in lattice_json cli bindings; do
+  echo "== fuzz_$target: ${PY_SECS}s"
+  args=(--seconds "$PY_SECS" --out "$OUT")
+  [ "$target" = lattice_json ] && args+=(--corpus native/fuzz/corpus/lattice)
+  rc=0
+  PYTHONPATH=python "$PY" native/fuzz/fuzz_$target.py "${args[@]}" > "$OUT/fuzz_$target.out" 2>&1 || rc=$?
+  grep -E "^fuzz_|^#[0-9]+ *(DONE|INITED)|stat::|Error|Traceback|^  |CRASH|Test unit written" "$OUT/fuzz_$target.out" || true
+  name=${target%_json}
+  if ls "$OUT"/crash-"$name"-* >/dev/null 2>&1; then echo "fuzz_$target: CRASH (see $OUT/crash-$name-*)"; exit 1; fi
+  if [ "$rc" != 0 ]; then echo "fuzz_$target: exit status $rc (see $OUT/fuzz_$target.out)"; exit 1; fi
+done
 echo "fuzz.sh: no crash"

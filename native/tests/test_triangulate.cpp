@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <map>
 #include <set>
 #include <unordered_map>
 
@@ -361,4 +362,32 @@ TEST(Triangulate, CancelStopsALargePolygon) {
   EXPECT_EQ(checks, 3);
   Triangulation again = triangulate_polygons(p.X, p.cv, p.fo);
   EXPECT_EQ(again.corners, want.corners);
+}
+
+// Suzanne's chin (Blender's monkey, vertices 70, 137, 138, 196, 197): two quads share three
+// vertices. Each alone prefers the diagonal 70-138, which makes the same triangle in both, back
+// to back (a fin whose edges have three and four faces). One of them takes its other diagonal.
+TEST(Triangulate, FacesSharingThreeVerticesMakeNoDuplicateTriangle) {
+  const std::vector<double> X = {0.0,       -0.796875, -0.1875,     // 0: vertex 70
+                                 0.0,       -0.75,     -0.195312,   // 1: 137
+                                 0.0,       -0.742188, -0.140625,   // 2: 138
+                                 0.039062,  -0.78125,  -0.125,      // 3: 196
+                                 -0.039062, -0.78125,  -0.125};     // 4: 197
+  const std::vector<int> cv = {1, 0, 3, 2, 4, 0, 1, 2}, fo = {0, 4, 8};
+  Triangulation tr = triangulate_polygons(X, cv, fo);
+  ASSERT_EQ(tr.face.size(), 4u);
+  std::set<std::vector<int>> sets;
+  std::map<std::pair<int, int>, int> edge_faces;
+  for (size_t t = 0; t < 4; ++t) {
+    std::vector<int> k = {cv[tr.corners[3 * t]], cv[tr.corners[3 * t + 1]], cv[tr.corners[3 * t + 2]]};
+    for (int e = 0; e < 3; ++e) edge_faces[{std::min(k[e], k[(e + 1) % 3]), std::max(k[e], k[(e + 1) % 3])}]++;
+    std::sort(k.begin(), k.end());
+    EXPECT_TRUE(sets.insert(k).second) << "triangle " << t << " repeats another's vertices";
+  }
+  for (auto& [e, n] : edge_faces) EXPECT_LE(n, 2) << "edge " << e.first << "-" << e.second;
+  // Each face keeps its own corners: two triangles of its four.
+  EXPECT_EQ(tr.face[0], 0);
+  EXPECT_EQ(tr.face[1], 0);
+  EXPECT_EQ(tr.face[2], 1);
+  EXPECT_EQ(tr.face[3], 1);
 }

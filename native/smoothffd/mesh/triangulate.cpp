@@ -1,8 +1,10 @@
 #include "smoothffd/mesh/triangulate.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
+#include <map>
 #include <queue>
 
 #include "smoothffd/core/cancel.hpp"
@@ -332,6 +334,64 @@ class LargeEarClipper {
   std::vector<Node> nodes_;
 };
 
+// Two faces that share three vertices (Suzanne's chin: quads (137, 70, 196, 138) and
+// (197, 70, 137, 138)) can each choose the diagonal that makes the same triangle, back to back:
+// a fin of zero volume whose edges have three or four faces, which folds the output there and
+// which Blender 3.4-4.4's custom normals cannot shade (tests/blender/check_normals.py). Where a
+// triangle repeats another face's vertices, a quad among the two takes its other diagonal,
+// if both of that diagonal's triangles keep the quad's orientation.
+void split_duplicate_triangles(const std::vector<double>& X, const std::vector<int>& cv,
+                               const std::vector<int>& fo, Triangulation& out) {
+  const size_t T = out.face.size();
+  std::map<std::array<int, 3>, size_t> seen;
+  auto key = [&](size_t t) {
+    std::array<int, 3> k{cv[out.corners[3 * t]], cv[out.corners[3 * t + 1]], cv[out.corners[3 * t + 2]]};
+    std::sort(k.begin(), k.end());
+    return k;
+  };
+  auto flip_quad = [&](size_t t) {
+    const int f = out.face[t];
+    if (fo[f + 1] - fo[f] != 4) return false;
+    const size_t t0 = t > 0 && out.face[t - 1] == f ? t - 1 : t;  // the quad's two triangles
+    if (t0 + 1 >= T || out.face[t0] != f || out.face[t0 + 1] != f) return false;
+    const int* q = &cv[fo[f]];
+    const double* p[4];
+    for (int i = 0; i < 4; ++i) p[i] = &X[3 * (size_t)q[i]];
+    double n[3] = {0, 0, 0};  // Newell normal
+    for (int i = 0; i < 4; ++i) {
+      const double *a = p[i], *b = p[(i + 1) % 4];
+      n[0] += (a[1] - b[1]) * (a[2] + b[2]);
+      n[1] += (a[2] - b[2]) * (a[0] + b[0]);
+      n[2] += (a[0] - b[0]) * (a[1] + b[1]);
+    }
+    auto positive = [&](int a, int b, int c) {
+      double u[3], v[3];
+      for (int i = 0; i < 3; ++i) u[i] = p[b][i] - p[a][i], v[i] = p[c][i] - p[a][i];
+      return (u[1] * v[2] - u[2] * v[1]) * n[0] + (u[2] * v[0] - u[0] * v[2]) * n[1] +
+                 (u[0] * v[1] - u[1] * v[0]) * n[2] > 0;
+    };
+    // The diagonal in use is the corner pair both triangles hold; take the other one.
+    const bool uses02 = [&] {
+      int both = 0;
+      for (int k = 0; k < 3; ++k)
+        for (int l = 0; l < 3; ++l)
+          if (out.corners[3 * t0 + k] == out.corners[3 * (t0 + 1) + l]) both |= 1 << ((out.corners[3 * t0 + k] - fo[f]) & 3);
+      return both == 0b0101;
+    }();
+    const int a = uses02 ? 1 : 0;  // new diagonal a -- a + 2
+    const int tri[2][3] = {{a, a + 1, (a + 2) % 4}, {a, (a + 2) % 4, (a + 3) % 4}};
+    if (!positive(tri[0][0], tri[0][1], tri[0][2]) || !positive(tri[1][0], tri[1][1], tri[1][2])) return false;
+    for (int s = 0; s < 2; ++s)
+      for (int k = 0; k < 3; ++k) out.corners[3 * (t0 + s) + k] = fo[f] + tri[s][k];
+    return true;
+  };
+  for (size_t t = 0; t < T; ++t) {
+    auto [it, fresh] = seen.emplace(key(t), t);
+    if (fresh || out.face[it->second] == out.face[t]) continue;
+    if (!flip_quad(t)) flip_quad(it->second);
+  }
+}
+
 }  // namespace
 
 Triangulation triangulate_polygons(const std::vector<double>& X, const std::vector<int>& cv,
@@ -395,6 +455,7 @@ Triangulation triangulate_polygons(const std::vector<double>& X, const std::vect
       out.face.push_back(f);
     }
   }
+  split_duplicate_triangles(X, cv, fo, out);
   return out;
 }
 

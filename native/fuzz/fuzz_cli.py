@@ -3,8 +3,9 @@
 Contract checked on every argv: `cli.main(argv)` returns 0 or 2, or argparse exits with 0
 (--help) or 2; no exception escapes (that would be a traceback); status 2 ends stderr with one
 line "...: error: ..." and nothing on stderr looks like a traceback; no temporary file of an
-atomic write is left behind; no run takes longer than 20 s; no allocation goes beyond the
-address-space limit (4 GiB: a MemoryError on the way is a finding).
+atomic write is left behind; no run takes longer than 20 s; no unplanned allocation fails
+(numpy's "Unable to allocate" or a bare MemoryError as the message; the address space is
+limited to 4 GiB), while a refusal that says why (the Deformer's memory check) is fine.
 
 Inputs: argv built from the parser itself (every subcommand, every option with values of its
 type: valid, negative, zero, huge, nan, inf, empty, other scripts' digits, long strings) and
@@ -215,6 +216,9 @@ class Target:
             last = shown.rstrip("\n").split("\n")[-1]
             assert ": error: " in last, f"status 2 without an error line: {err[-2000:]!r}"
             assert len(last) < 2000, "an error line of 2000 characters"
+            # A refused allocation nobody planned for (numpy's "Unable to allocate", a bare
+            # MemoryError): a small argv must not ask for gigabytes.
+            assert "Unable to allocate" not in last and not last.endswith("error: MemoryError"), last
         left = [p.name for p in self.folder.rglob(".*.tmp")]
         assert not left, f"temporary files left: {left}"
 

@@ -72,7 +72,8 @@ def test_interpolate_corners_equals_the_core_uvs(deformer):
     a, b, c = (V[cv[tc[:, k]]] for k in range(3))
     x = res.rest_positions[res.triangles.reshape(-1)].astype(np.float64)
     m = np.stack([b - a, c - a], axis=2)
-    sol = np.linalg.solve(np.einsum("nij,nik->njk", m, m), np.einsum("nij,ni->nj", m, x - a))
+    # b as (n, k, 1): numpy 2 reads a batch of 1-d right-hand sides as one matrix.
+    sol = np.linalg.solve(np.einsum("nij,nik->njk", m, m), np.einsum("nij,ni->nj", m, x - a)[..., None])[..., 0]
     w = np.concatenate([1 - sol.sum(axis=1, keepdims=True), sol], axis=1)
     want = np.einsum("nk,nki->ni", w, uvs[tc].astype(np.float64)).reshape(-1, 3, 2)
     assert np.abs(res.uvs - want).max() < 2e-5

@@ -385,7 +385,9 @@ void split_duplicate_triangles(const std::vector<double>& X, const std::vector<i
       for (int k = 0; k < 3; ++k) out.corners[3 * (t0 + s) + k] = fo[f] + tri[s][k];
     return true;
   };
+  CancelPoller poller;
   for (size_t t = 0; t < T; ++t) {
+    poller.tick();
     auto [it, fresh] = seen.emplace(key(t), t);
     if (fresh || out.face[it->second] == out.face[t]) continue;
     if (!flip_quad(t)) flip_quad(it->second);

@@ -19,7 +19,6 @@ case that caused it, and `--repro SEED:INDEX` runs that case again in this proce
   PYTHONPATH=python python3 native/fuzz/fuzz_bindings.py --repro 1:123
 """
 import argparse
-import os
 import pathlib
 import random
 import resource
@@ -339,7 +338,7 @@ def child(args):
 def parent(args):
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    log = out / f"fuzz_bindings.log"
+    log = out / "fuzz_bindings.log"
     log.write_text("")
     cmd = [sys.executable, __file__, "--child", "--seed", str(args.seed), "--seconds",
            str(args.seconds), "--log", str(log)]

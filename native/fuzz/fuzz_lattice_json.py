@@ -17,9 +17,7 @@ or duplicated, splices of other seeds).
   PYTHONPATH=python python3 native/fuzz/fuzz_lattice_json.py --seconds 15
   PYTHONPATH=python python3 native/fuzz/fuzz_lattice_json.py --repro FILE     # one input, traceback
 """
-import argparse
 import json
-import math
 import os
 import pathlib
 import random
@@ -28,13 +26,12 @@ import signal
 import sys
 import tempfile
 import time
-import traceback
 import warnings
 
 import numpy as np
 
-HERE = pathlib.Path(__file__).resolve().parent
-ROOT = HERE.parents[1]
+import fuzz_common
+
 
 TOKENS = [b"null", b"true", b"false", b"[]", b"{}", b"[[", b"]]", b"0", b"-1", b"1e309", b"-0",
           b"NaN", b"Infinity", b"-Infinity", b"1e-320", b"99999999999999999999", b"0.5", b'""',
@@ -236,43 +233,19 @@ def mutate(rng, data, corpus):
     return mutate_text(rng, data, corpus)
 
 
-def load_corpus(path):
-    files = sorted(pathlib.Path(path).glob("*")) if path else []
-    return [f.read_bytes() for f in files if f.is_file()] or [b"{}"]
-
-
 def run_one(target, data, out):
-    try:
-        target(data)
-    except Exception:
-        crash = pathlib.Path(out) / f"crash-lattice-{abs(hash(data)) & 0xffffffff:08x}.json"
-        crash.write_bytes(data)
-        print(f"fuzz_lattice_json: CRASH, input written to {crash}\n{traceback.format_exc()}", flush=True)
-        sys.exit(1)
+    fuzz_common.run_one("lattice", ".json", target, data, out)
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--seconds", type=float, default=15)
-    ap.add_argument("--corpus", default=str(HERE / "corpus" / "lattice"))
-    ap.add_argument("--out", default=str(ROOT / "build" / "fuzz"))
-    ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--engine", choices=("auto", "atheris", "mutation"), default="auto")
-    ap.add_argument("--repro", help="run one input and show the traceback")
-    args = ap.parse_args()
+    args = fuzz_common.parser(15, "lattice").parse_args()
     os.makedirs(args.out, exist_ok=True)
     signal.signal(signal.SIGALRM, _on_alarm)
     soft, hard = resource.getrlimit(resource.RLIMIT_AS)
     limit = 4 << 30
     if soft == resource.RLIM_INFINITY or soft > limit:
         resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
-    engine = args.engine
-    if engine == "auto":
-        try:
-            import atheris  # noqa: F401
-            engine = "atheris"
-        except ImportError:
-            engine = "mutation"
+    engine = fuzz_common.engine(args.engine)
     if engine == "atheris" and not args.repro:
         import atheris
 
@@ -292,7 +265,7 @@ def main():
             print(f"fuzz_lattice_json: {args.repro}: ok "
                   f"({'accepted' if target.accepted else 'refused'})")
             return
-        corpus = load_corpus(args.corpus)
+        corpus = fuzz_common.load_corpus(args.corpus, b"{}")
         rng = random.Random(args.seed)
         t_end = time.time() + args.seconds
         n = 0

@@ -17,20 +17,20 @@ Two engines:
   PYTHONPATH=python python3 native/fuzz/fuzz_obj.py --seconds 30 --corpus native/fuzz/corpus/obj
   PYTHONPATH=python python3 native/fuzz/fuzz_obj.py --repro FILE     # one input, traceback
 """
-import argparse
 import os
 import pathlib
 import random
 import sys
 import tempfile
 import time
-import traceback
 import warnings
 
 import numpy as np
 
-HERE = pathlib.Path(__file__).resolve().parent
-ROOT = HERE.parents[1]
+import fuzz_common
+
+HERE = fuzz_common.HERE
+ROOT = fuzz_common.ROOT
 
 TOKENS = [b"v ", b"vt ", b"vn ", b"f ", b"o x", b"g ", b"s off", b"l 1 2", b"usemtl m", b"#",
           b"/", b"//", b"-", b"-1", b"0", b"1", b"2", b"3", b"-2", b"99999999999", b"1e309",
@@ -159,12 +159,6 @@ def mutate(rng, data: bytes, corpus):
     return bytes(b[:8192])
 
 
-def load_corpus(path):
-    files = sorted(pathlib.Path(path).glob("*")) if path else []
-    seeds = [f.read_bytes() for f in files if f.is_file()]
-    return seeds or [b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"]
-
-
 def run_mutation(target, seconds, corpus, out, seed):
     rng = random.Random(seed)
     t_end = time.time() + seconds
@@ -181,32 +175,13 @@ def run_mutation(target, seconds, corpus, out, seed):
 
 
 def run_one(target, data, out):
-    try:
-        target(data)
-    except Exception:
-        crash = pathlib.Path(out) / f"crash-obj-{abs(hash(data)) & 0xffffffff:08x}.obj"
-        crash.write_bytes(data)
-        print(f"fuzz_obj: CRASH, input written to {crash}\n{traceback.format_exc()}", flush=True)
-        sys.exit(1)
+    fuzz_common.run_one("obj", ".obj", target, data, out)
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--seconds", type=float, default=30)
-    ap.add_argument("--corpus", default=str(HERE / "corpus" / "obj"))
-    ap.add_argument("--out", default=str(ROOT / "build" / "fuzz"))
-    ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--engine", choices=("auto", "atheris", "mutation"), default="auto")
-    ap.add_argument("--repro", help="run one input and show the traceback")
-    args = ap.parse_args()
+    args = fuzz_common.parser(30, "obj").parse_args()
     os.makedirs(args.out, exist_ok=True)
-    engine = args.engine
-    if engine == "auto":
-        try:
-            import atheris  # noqa: F401
-            engine = "atheris"
-        except ImportError:
-            engine = "mutation"
+    engine = fuzz_common.engine(args.engine)
     if engine == "atheris" and not args.repro:
         import atheris
 
@@ -230,7 +205,7 @@ def main():
             target(pathlib.Path(args.repro).read_bytes())
             print(f"fuzz_obj: {args.repro}: ok ({'accepted' if target.accepted else 'ValueError'})")
             return
-        corpus = load_corpus(args.corpus)
+        corpus = fuzz_common.load_corpus(args.corpus, b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
         n = run_mutation(target, args.seconds, corpus, args.out, args.seed)
         print(f"fuzz_obj: mutation loop, {n} inputs in {args.seconds:.0f}s "
               f"({target.accepted} accepted, {target.refused} refused with ValueError), no crash")

@@ -1,11 +1,13 @@
-// The paper's uniform upsampling baseline (bench_native.hpp): one thread a point, sample_point
-// and the cofactor normal of eval/stages.hpp.
+// The paper's uniform upsampling baseline (bench_native.hpp): one thread a point,
+// sample_point_fixed with the plan's term count at compile time (as the CUDA evaluator's own
+// sampling) and the cofactor normal of eval/stages.hpp.
 #include <cuda_runtime.h>
 
 #include <stdexcept>
 
 #include "bench_native.hpp"
 #include "smoothffd/cuda/device_memory.hpp"
+#include "smoothffd/cuda/device_tables.hpp"
 #include "smoothffd/eval/stages.hpp"
 
 namespace sffd {
@@ -15,12 +17,16 @@ using namespace cuda_impl;
 
 namespace {
 
-__global__ void k_baseline(PlanView pv, const float* __restrict__ D, const float* __restrict__ rest_normal,
-                           float* __restrict__ pos, float* __restrict__ nrm) {
+// C terms an axis (kernel_terms of the plan's largest count): the generic sample_point's
+// run-time loop over kMaxTerms took 1.76x as long on W1 (H100, 2026-11-24).
+template <int C>
+__global__ void __launch_bounds__(256) k_baseline(PlanView pv, const float* __restrict__ D,
+                                                  const float* __restrict__ rest_normal, float* __restrict__ pos,
+                                                  float* __restrict__ nrm) {
   int s = blockIdx.x * blockDim.x + threadIdx.x;
   if (s >= pv.samples) return;
   float F[3], J[9];
-  sample_point(pv, D, s, F, J);
+  sample_point_fixed<C>(pv, D, s, F, J);
   V3 n0 = load3(rest_normal + 3 * (long long)s);
   store3(pos + 3 * (long long)s, load3(F));
   store3(nrm + 3 * (long long)s, normalized_or(cofactor_apply(J, n0), n0));
@@ -33,6 +39,7 @@ struct UpsamplingBaseline::Impl {
   PlanView pv{};
   float *D = nullptr, *rest_normal = nullptr, *pos = nullptr, *nrm = nullptr;
   size_t nD = 0;
+  int terms = kMaxTerms;
   cudaStream_t stream = nullptr;
   Events events;
   ~Impl() {
@@ -40,7 +47,14 @@ struct UpsamplingBaseline::Impl {
   }
   void launch() {
     if (pv.samples == 0) return;
-    k_baseline<<<blocks_for(pv.samples, 256), 256, 0, stream>>>(pv, D, rest_normal, pos, nrm);
+    const unsigned grid = blocks_for(pv.samples, 256);
+    switch (terms) {
+      case 2: k_baseline<2><<<grid, 256, 0, stream>>>(pv, D, rest_normal, pos, nrm); break;
+      case 3: k_baseline<3><<<grid, 256, 0, stream>>>(pv, D, rest_normal, pos, nrm); break;
+      case 4: k_baseline<4><<<grid, 256, 0, stream>>>(pv, D, rest_normal, pos, nrm); break;
+      case 5: k_baseline<5><<<grid, 256, 0, stream>>>(pv, D, rest_normal, pos, nrm); break;
+      default: k_baseline<kMaxTerms><<<grid, 256, 0, stream>>>(pv, D, rest_normal, pos, nrm); break;
+    }
     CK_LAUNCH(k_baseline);
   }
 };
@@ -77,6 +91,7 @@ UpsamplingBaseline::UpsamplingBaseline(std::shared_ptr<const Plan> plan, const s
   v.sample_weight = a.upload(std::vector<float>(M, 1.0f));
   m.rest_normal = a.upload(normals);
   m.nD = 3 * (size_t)p.dims[0] * p.dims[1] * p.dims[2];
+  m.terms = kernel_terms(plan_max_terms(p));
   m.D = a.alloc<float>(m.nD);
   m.pos = a.alloc<float>(3 * M);
   m.nrm = a.alloc<float>(3 * M);

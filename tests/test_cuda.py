@@ -220,6 +220,25 @@ def test_inline_global_mode(case):
 
 
 @pytest.mark.parametrize("path", PATHS)
+def test_tiny_knot_spans(path):
+    """Knot spans too small for float positions (two spans of 1e-7 among spans of 0.2-0.5, also
+    with every knot shifted by 1e5): the plan carries each sample's local coordinate in its span
+    (issue 19), both paths read it and agree with the CPU; the fused path runs the inline
+    kernel's global mode (its shared-memory modes place samples in float)."""
+    rng = np.random.default_rng(19)
+    inner = np.array([0.0, 0.3, 0.5, 0.5 + 1e-7, 0.5 + 2e-7, 1.0])
+    mesh = icosphere(2)
+    for shift in (0.0, 1e5):
+        kv = [np.concatenate([[0.0, 0.0], inner, [1.0, 1.0]]) + shift] * 3
+        lat = smoothffd.BSplineLattice.identity(BOX[0], BOX[1], shape=(7, 7, 7), degree=(2, 2, 2), knots=kv)
+        lat = lat.with_control_points(lat.control_points + 0.03 * SIZE * rng.standard_normal(lat.control_points.shape))
+        check(mesh, lat, level=4, path=path)
+        plan = smoothffd.Deformer(mesh, lat, level=4, device="cpu").plan
+        if path == "fused":
+            assert _core.CudaEvaluator(plan, "fused").kernel == "inline (global)"
+
+
+@pytest.mark.parametrize("path", PATHS)
 def test_partly_outside_box(path):
     """The sphere sticks out of the lattice box: clipping at the box faces too."""
     rng = np.random.default_rng(3)

@@ -334,12 +334,6 @@ DeviceTables build_device_tables(const Plan& p, const TessellationTables& tt) {
     t.no_inline = "the plan's constraint columns are not where the inline kernel reads them";
     return t;
   }
-  if (!p.sample_local.empty()) {
-    // The inline kernel places each sample and computes its t from the position in float;
-    // the reference kernels read the plan's local coordinates as the CPU does (stages.hpp).
-    t.no_inline = "knot spans too small for float positions: the samples' local coordinates come from the plan";
-    return t;
-  }
   // The boxes that hold samples, numbered in order of first use; box_of[s]: sample s's.
   std::vector<uint32_t> box_of((size_t)p.samples);
   {
@@ -363,7 +357,12 @@ DeviceTables build_device_tables(const Plan& p, const TessellationTables& tt) {
   // The shared-memory modes: at most 4 terms an axis, every piece in the boxes' 10 bits, the
   // boundary list's 11 bits of walk position, InlinePatch::box (a byte a column, an index
   // into at most 256 boxes).
-  if (t.max_terms > 4)
+  if (!p.sample_local.empty())
+    // The shared-memory modes place each sample from its patch's corners and compute its t
+    // from the float position; the global mode reads the plan's local coordinates, as the
+    // CPU does (sample_weights, stages.hpp).
+    t.shared_why = "knot spans too small for float positions: the samples' local coordinates come from the plan";
+  else if (t.max_terms > 4)
     t.shared_why = "more than 4 terms an axis";
   else if (t.n_pieces >= 1024)
     t.shared_why = "1024 or more axis pieces";

@@ -193,7 +193,8 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
             sample_inline<C>(SharedControls{sD}, sP, pw, piece, F, J);
           }
         } else {
-          // The sample as the plan has it: its position, vertex weight and pieces.
+          // The sample as the plan has it: its position, vertex weight, pieces and, for knot
+          // spans too small for float positions, its local coordinates.
           const long long s = pv.patch_samples[(long long)p * K + k];
           pw = make_float4(__ldg(pv.sample_position + 3 * s), __ldg(pv.sample_position + 3 * s + 1),
                            __ldg(pv.sample_position + 3 * s + 2), __ldg(pv.sample_weight + s));
@@ -201,7 +202,8 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
           int piece[3];
 #pragma unroll
           for (int a = 0; a < 3; ++a) piece[a] = pv.axis_offset[a] + (int)((packed >> (10 * a)) & 1023u);
-          sample_inline<C>(GlobalControls{ia.D}, sP, pw, piece, F, J);
+          sample_inline<C>(GlobalControls{ia.D}, sP, pw, piece, F, J,
+                           pv.sample_local ? pv.sample_local + 3 * s : nullptr);
         }
         const float4 col = ld(cl.bary);
         const V3 x = v3(F[0], F[1], F[2]);

@@ -80,10 +80,12 @@ struct GlobalControls {
 // lattice's map, the origin and the scale), the per-axis Horner scheme (horner) and the
 // contraction (tensor_contract) of lattice/tensor_eval.hpp with the kernel's reader of the
 // control values, and J = I + w (dF/dt) A' with A' = the pieces' maps (dt/dp). piece: the
-// sample's piece of each axis (indices into pcs).
+// sample's piece of each axis (indices into pcs); local: the sample's t of each axis where the
+// plan has them (Plan::sample_local: spans too small for float positions), else null.
 template <int C, class Piece, class Controls>
 __device__ __forceinline__ void sample_inline(const Controls& D, const Piece* __restrict__ pcs, float4 pw,
-                                              const int piece[3], float F[3], float J[9]) {
+                                              const int piece[3], float F[3], float J[9],
+                                              const float* __restrict__ local = nullptr) {
   float w[3][C], dw[3][C], m[3][3];
   int off[3][C];
 #pragma unroll
@@ -92,7 +94,7 @@ __device__ __forceinline__ void sample_inline(const Controls& D, const Piece* __
     const float4 mp = ld(pc.map);
     piece_offsets<C>(pc, off[a]);
     m[a][0] = mp.x, m[a][1] = mp.y, m[a][2] = mp.z;
-    const float t = fmaf(mp.x, pw.x, fmaf(mp.y, pw.y, fmaf(mp.z, pw.z, mp.w)));
+    const float t = local ? __ldg(local + a) : fmaf(mp.x, pw.x, fmaf(mp.y, pw.y, fmaf(mp.z, pw.z, mp.w)));
 #pragma unroll
     for (int k = 0; k < C; ++k) {
       float c[C];

@@ -129,7 +129,7 @@ TEST(DeviceTables, PatchRecordsCarryTheEdgeTables) {
         const uint32_t bits = (r.flags >> (12 + 4 * k)) & 15u;
         EXPECT_EQ((bits & 1) != 0, (p.edge_flags[e] & kSharpAtA) != 0);
         EXPECT_EQ((bits & 2) != 0, (p.edge_flags[e] & kSharpAtB) != 0);
-        EXPECT_EQ((bits & 4) != 0, (p.edge_flags[e] & kNonManifold) != 0);
+        EXPECT_EQ((bits & 4) != 0, (p.edge_flags[e] & kKeepFitted) != 0);  // non-manifold or a flat face's
         EXPECT_EQ((bits & 8) != 0, p1 >= 0);
         EXPECT_EQ((r.flags >> (24 + k)) & 1, p1 == q ? 1u : 0u);
         if ((p.edge_flags[e] & kNonManifold) || p1 < 0) continue;

@@ -122,7 +122,7 @@ std::vector<InlinePatch> build_patch_records(const Plan& p, const std::vector<ui
       const int p0 = p.edge_patch[2 * (size_t)e], p1 = p.edge_patch[2 * (size_t)e + 1];
       const uint8_t ef = p.edge_flags[e];
       const bool self1 = p1 == q;
-      uint32_t bits = (ef & kSharpAtA ? 1u : 0u) | (ef & kSharpAtB ? 2u : 0u) | (ef & kNonManifold ? 4u : 0u) |
+      uint32_t bits = (ef & kSharpAtA ? 1u : 0u) | (ef & kSharpAtB ? 2u : 0u) | (ef & kKeepFitted ? 4u : 0u) |
                       (p1 >= 0 ? 8u : 0u);
       if (!(ef & kNonManifold)) {
         // This patch's corner at each end must be the slot the edge table has for its side.

@@ -108,15 +108,15 @@ SFFD_HD V3 adjust_control_point(V3 c, V3 P, V3 n0, V3 n1, bool has_n1, bool shar
 // ends: c[0] next to a, c[1] next to b. sharp: bit 0 sharp at a, bit 1 at b; has1: a second
 // patch (side 1); rest(end, side): the rest adjustment normal of side `side`'s patch at that
 // end (the plan's tables for adjust_edge, the patch record for the CUDA inline kernel, whose
-// two patches of an edge so compute bitwise the same points). Non-manifold edges keep the
-// fitted points.
+// two patches of an edge so compute bitwise the same points). keep: the edge keeps the fitted
+// points (kKeepFitted: non-manifold edges and flat faces' edges).
 template <class RestNormal>
 SFFD_HD void edge_control_points(V3 Pa, V3 Pb, V3 Q1, V3 Q2, const float* Ja, const float* Jb, unsigned sharp,
-                                 bool non_manifold, bool has1, const RestNormal& rest, V3 c[2]) {
+                                 bool keep, bool has1, const RestNormal& rest, V3 c[2]) {
   const float s6 = 1.0f / 6.0f;
   c[0] = s6 * (-5.0f * Pa + 18.0f * Q1 - 9.0f * Q2 + 2.0f * Pb);
   c[1] = s6 * (2.0f * Pa - 9.0f * Q1 + 18.0f * Q2 - 5.0f * Pb);
-  if (non_manifold) return;
+  if (keep) return;
   for (int end = 0; end < 2; ++end) {
     const float* J = end ? Jb : Ja;
     const V3 m0 = rest(end, 0);
@@ -139,7 +139,7 @@ SFFD_HD void edge_control_points(const PlanView& pv, int e, V3 Pa, V3 Pb, V3 Q1,
   auto rest = [&](int end, int side) {
     return load3(pv.patch_adjust_normal + 9 * (long long)(side ? p1 : p0) + 3 * pv.edge_slot[4 * e + 2 * side + end]);
   };
-  edge_control_points(Pa, Pb, Q1, Q2, Ja, Jb, flags & (kSharpAtA | kSharpAtB), (flags & kNonManifold) != 0, p1 >= 0,
+  edge_control_points(Pa, Pb, Q1, Q2, Ja, Jb, flags & (kSharpAtA | kSharpAtB), (flags & kKeepFitted) != 0, p1 >= 0,
                       rest, c);
 }
 

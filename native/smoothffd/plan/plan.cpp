@@ -361,6 +361,13 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
     uint8_t f = sharp[e];
     if (sub.face_count[e] == 1) f |= kBoundary;
     if (sub.face_count[e] > 2) f |= kNonManifold;
+    // A flat face's edges (docs/algorithm.md, "Flat faces"): its patches are the accurate FFD
+    // of its triangles, edges included, so the edge a smooth face shares with it follows the
+    // flat one, straight at rest.
+    for (int s = 0; s < 2; ++s) {
+      const int p = sub.side[2 * e + s];
+      if (p >= 0 && adjust.flat[clip.patch_tri[p]]) f |= kFlatFace;
+    }
     plan.edge_flags[e] = f;
     for (int s = 0; s < 2; ++s) {
       int p = sub.side[2 * e + s];

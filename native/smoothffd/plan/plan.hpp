@@ -71,7 +71,10 @@ enum EdgeFlags : uint8_t {
   kSharpAtB = 2,
   kBoundary = 4,      // one face
   kNonManifold = 8,   // three or more faces: left as fitted
+  kFlatFace = 16,     // a patch on it is a flat face's: left as fitted (the edge's own FFD)
 };
+// Edges whose control points the evaluators leave as fitted (no adjustment to the normals).
+constexpr uint8_t kKeepFitted = kNonManifold | kFlatFace;
 
 struct Plan {
   // --- sizes

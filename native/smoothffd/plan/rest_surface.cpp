@@ -21,14 +21,14 @@ bool normalize3(double* v) {
 
 // Control point next to `a` on the edge a -> b, from the normals n0 (and n1) at a.
 void edge_point(const double* a, const double* b, const double* n0, const double* n1,
-                bool sharp, bool non_manifold, double* out) {
+                bool sharp, bool keep, double* out) {
   double third[3], base[3];
   for (int i = 0; i < 3; ++i) {
     third[i] = (b[i] - a[i]) / 3.0;
     base[i] = a[i] + third[i];
   }
   for (int i = 0; i < 3; ++i) out[i] = base[i];
-  if (non_manifold) return;
+  if (keep) return;  // non-manifold edges and flat faces' edges: straight
   if (sharp && n1) {
     double t[3] = {n0[1] * n1[2] - n0[2] * n1[1], n0[2] * n1[0] - n0[0] * n1[2],
                    n0[0] * n1[1] - n0[1] * n1[0]};
@@ -255,7 +255,7 @@ int bound_adjust_normals(const std::vector<double>& X, const std::vector<int>& t
   const int T = (int)(tv.size() / 3), V = (int)(X.size() / 3);
   std::vector<uint8_t> dirty(check ? *check : std::vector<uint8_t>(T, 1)), lowered(V, 0), folds(T, 0);
   for (int round = 0;; ++round) {
-    rest = build_rest_surface(X, tv, e, sharp, an.corner);
+    rest = build_rest_surface(X, tv, e, sharp, an.corner, &an.flat);
     if (round == 64) break;  // each vertex is lowered at most 5 times: never reached
     parallel_for(T, default_threads(), [&](long long b, long long end) {
       for (long long t = b; t < end; ++t) {
@@ -299,17 +299,18 @@ int bound_adjust_normals(const std::vector<double>& X, const std::vector<int>& t
 
 RestSurface build_rest_surface(const std::vector<double>& X, const std::vector<int>& tv,
                                const EdgeTable& e, const std::vector<uint8_t>& sharp,
-                               const std::vector<double>& cn) {
+                               const std::vector<double>& cn, const std::vector<uint8_t>* flat) {
   RestSurface rs;
   rs.edge_cp.assign(6 * (size_t)e.count(), 0.0);
   for (int id = 0; id < e.count(); ++id) {
     for (int end = 0; end < 2; ++end) {
       int v = e.vertex[2 * id + end], w = e.vertex[2 * id + 1 - end];
       int t0 = e.side[2 * id], t1 = e.side[2 * id + 1];
+      const bool keep = e.face_count[id] > 2 || (flat && ((*flat)[t0] || (t1 >= 0 && (*flat)[t1])));
       const double* n0 = &cn[9 * (size_t)t0 + 3 * slot_of(tv, t0, v)];
       const double* n1 = t1 >= 0 ? &cn[9 * (size_t)t1 + 3 * slot_of(tv, t1, v)] : nullptr;
-      edge_point(&X[3 * (size_t)v], &X[3 * (size_t)w], n0, n1, (sharp[id] >> end) & 1,
-                 e.face_count[id] > 2, &rs.edge_cp[6 * (size_t)id + 3 * end]);
+      edge_point(&X[3 * (size_t)v], &X[3 * (size_t)w], n0, n1, (sharp[id] >> end) & 1, keep,
+                 &rs.edge_cp[6 * (size_t)id + 3 * end]);
     }
   }
   return rs;

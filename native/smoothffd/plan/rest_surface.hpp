@@ -56,10 +56,12 @@ struct RestSurface {
 };
 
 // X: #V x 3 positions; tv: #T x 3; corner_normal: #T x 3 x 3 unit; sharp: per edge flags from
-// classify_sharp_ends.
+// classify_sharp_ends; flat: #T, triangles of flat faces (null: none), whose edges stay
+// straight as the evaluators keep them (kFlatFace), like non-manifold edges.
 RestSurface build_rest_surface(const std::vector<double>& X, const std::vector<int>& tv,
                                const EdgeTable& edges, const std::vector<uint8_t>& sharp,
-                               const std::vector<double>& corner_normal);
+                               const std::vector<double>& corner_normal,
+                               const std::vector<uint8_t>* flat = nullptr);
 
 // Control points of triangle t's rest patch (plan/bezier.hpp order).
 void rest_patch(const RestSurface& rs, const std::vector<double>& X, const std::vector<int>& tv,

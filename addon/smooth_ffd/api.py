@@ -6,7 +6,7 @@
 """
 import bpy
 
-from . import bake, compat, handlers, inputs, modifier_update, nodegroup
+from . import bake, compat, handlers, inputs, linked, modifier_update, nodegroup
 
 
 def add_smooth_ffd(obj, lattice_obj=None, viewport_level=3, render_level=10, backend="auto",
@@ -16,6 +16,7 @@ def add_smooth_ffd(obj, lattice_obj=None, viewport_level=3, render_level=10, bac
         raise TypeError("obj: Smooth FFD works on mesh objects")
     if lattice_obj is not None and lattice_obj.type != 'LATTICE':
         raise TypeError(f"lattice_obj: {lattice_obj.name!r} is not a lattice object")
+    linked.check_writable(obj, action="add a modifier to")
     inputs.parse_level(viewport_level, "viewport_level")
     inputs.parse_level(render_level, "render_level")
     inputs.parse_backend(backend)
@@ -72,6 +73,7 @@ def bake_smooth_ffd(obj, mod=None, frame_start=None, frame_end=None):
     clear_bake(obj, mod). Returns the number of distinct meshes stored. Raises RuntimeError
     (nothing baked) when a frame has no valid result."""
     mod = _one(obj, mod)
+    linked.check_writable(obj, mod, "bake")
     scene = bpy.context.scene
     host = bake.bake(obj, mod, scene.frame_start if frame_start is None else frame_start,
                      scene.frame_end if frame_end is None else frame_end, scene)
@@ -82,6 +84,7 @@ def bake_smooth_ffd(obj, mod=None, frame_start=None, frame_end=None):
 def clear_bake(obj, mod=None):
     """Removes the bake of a modifier (or of each of the object's); the modifier computes
     live again on those frames. Returns whether there was one."""
+    linked.check_writable(obj, mod, "clear the bake of")
     mods = [mod] if mod is not None else smooth_ffd_modifiers(obj)
     had = [bake.clear(obj, m) for m in mods]
     if any(had):
@@ -104,6 +107,7 @@ def apply_smooth_ffd(obj, mod):
     The old mesh data-block is left to Blender (undo keeps it); the hidden result object is
     deleted. Raises RuntimeError (source untouched) when the modifier has no valid result.
     """
+    linked.check_writable(obj, mod, "apply")
     with handlers.muted():
         name = mod.name   # the modifier is freed by the operator: never touch it after
         depsgraph = bpy.context.evaluated_depsgraph_get()
@@ -131,6 +135,7 @@ def apply_smooth_ffd(obj, mod):
 
 def remove_smooth_ffd(obj, mod):
     """Removes the modifier; the object shows its (never modified) source mesh again."""
+    linked.check_writable(obj, mod, "remove")
     ro = modifier_update.result_object(obj, mod, create=False)
     modifier_update.forget(obj, mod)
     bake.clear(obj, mod)

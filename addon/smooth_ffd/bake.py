@@ -118,6 +118,8 @@ def clear(obj, mod):
 
 
 def remove_host(host):
+    if host.library is not None:   # a library's bake (a linked or overridden modifier's)
+        return
     groups = [m.node_group for m in host.modifiers if m.type == 'NODES' and m.node_group]
     _remove_object(host)
     for group in groups:

@@ -139,7 +139,25 @@ def set_modifier_input(mod, name, value):
         return
     if isinstance(value, str) and is_menu_socket(socket):
         value = _menu_value(mod, ident, value)
+    # On 3.4 (not 4.2+) a Python float replaces the socket's float ID property by a double
+    # one, dropping its "overridable" flag: library overrides of the object would not
+    # record it (linked.py). Keep the flag.
+    path = f'["{ident}"]'
+    try:
+        overridable = mod.is_property_overridable_library(path)
+    except (TypeError, AttributeError):   # not set yet (or a test's stand-in)
+        overridable = False
     mod[ident] = value
+    if overridable and not mod.is_property_overridable_library(path):
+        mod.property_overridable_library_set(path, True)
+
+
+def ensure_overridable(mod, name):
+    """Marks a modifier input as overridable by library overrides (up to 5.1: an ID
+    property of the modifier); KeyError when the group has no such input."""
+    path = f'["{input_identifier(mod.node_group, name)}"]'
+    if not mod.is_property_overridable_library(path):
+        mod.property_overridable_library_set(path, True)
 
 
 # --- positions ------------------------------------------------------------------------------

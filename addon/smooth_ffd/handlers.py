@@ -9,7 +9,7 @@ import threading
 import bpy
 from bpy.app.handlers import persistent
 
-from . import bake, compat, modifier_update, nodegroup
+from . import bake, compat, linked, modifier_update, nodegroup
 
 _busy = False
 _rendering = False
@@ -19,11 +19,12 @@ _wanted_lattices = set()
 
 
 def smooth_ffd_modifiers(scene=None):
-    """(object, modifier) pairs of every Smooth FFD modifier in the scene (or the file)."""
+    """(object, modifier) pairs of every Smooth FFD modifier in the scene (or the file)
+    that the add-on may write: linked objects are left out (linked.py)."""
     objects = scene.objects if scene is not None else bpy.data.objects
     out = []
     for obj in objects:
-        if obj.type != 'MESH':
+        if obj.type != 'MESH' or obj.library is not None:
             continue
         for mod in obj.modifiers:
             if nodegroup.is_smooth_ffd_modifier(mod):
@@ -51,6 +52,7 @@ def update_all(scene=None, depsgraph=None, render=None, changed_meshes=None, for
         if depsgraph is None:
             depsgraph = bpy.context.evaluated_depsgraph_get()
         release_deleted_lattices()
+        linked.report_scene(scene)
         frame = modifier_update.scene_frame(scene)
         view_layer = getattr(depsgraph, "view_layer", None) or bpy.context.view_layer
         count = 0
@@ -175,6 +177,8 @@ def release_deleted_lattices():
         if lat is not None:
             refs.setdefault(lat, []).append((_obj, mod))
     for lat, users in refs.items():
+        if lat.library is not None:   # a linked lattice is its library's business
+            continue
         key = lat.as_pointer()
         # Every collection holding the lattice, a fake user or any other ID property holds a
         # user of it: more users than these inputs means it is still wanted (cheaper than
@@ -262,6 +266,7 @@ def on_frame_change(scene, depsgraph=None):
 @persistent
 def on_load(*_args):
     modifier_update.forget()   # in-memory plans belong to the previous file
+    linked.forget()
     _wanted_lattices.clear()
     for _obj, mod in smooth_ffd_modifiers():
         nodegroup.migrate(mod)   # older layouts -> this Blender's (menu, frame ranges)
@@ -274,6 +279,8 @@ def on_load(*_args):
         if lat is not None and not lat.users_collection:
             _wanted_lattices.add(lat.as_pointer())
     scene = bpy.context.scene
+    if scene is not None:
+        linked.report_scene(scene, force=True)
     if scene is not None and smooth_ffd_modifiers(scene):
         update_all(scene)
 

@@ -7,7 +7,7 @@ import uuid
 import bpy
 import numpy as np
 
-from . import carry, compat, core, inputs, latticeio, meshio, nodegroup
+from . import carry, compat, core, inputs, latticeio, linked, meshio, nodegroup
 
 OWNER_KEY = "smooth_ffd_owner"          # result object -> source object's name_full (a string)
 MODIFIER_KEY = "smooth_ffd_modifier"    # result object -> modifier name
@@ -128,6 +128,8 @@ def _owned_by(ro, obj, mod):
     through uid, the plan; the names recorded are brought up to date). Shared (a duplicate or
     a copy): the recorded names decide, and the other one gets a result of its own.
     """
+    if not linked.local_result(ro):   # the library's result (an override's input): never ours
+        return False
     owner = ro.get(OWNER_KEY)
     if isinstance(owner, bpy.types.ID):          # files saved before: a pointer, converted
         if owner != obj:
@@ -150,7 +152,11 @@ def set_status(obj, mod, text, frames=None, wrote_result=False, report=None):
     wrote_result: the result mesh was just written, which re-evaluates the object anyway
     (its modifier depends on the result object). Tagging the object too would tag its mesh
     data on 3.4, and the post handler would then re-read the source mesh for nothing.
-    report: print the text to the console (default: when no valid result is left)."""
+    report: print the text to the console (default: when no valid result is left).
+    A linked modifier's status is never written (linked.py): the console says it once."""
+    if obj.library is not None:
+        linked.report(obj, mod)
+        return
     changed = False
     if compat.get_modifier_input(mod, "Status") != text:
         compat.set_modifier_input(mod, "Status", text)
@@ -267,7 +273,11 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
     context's); the result's frame range (nodegroup) is written from it.
     """
     st = None
+    if obj.library is not None:   # linked data are never written (linked.py)
+        linked.report(obj, mod)
+        return False
     try:
+        linked.prepare_override(obj, mod)
         ro = result_object(obj, mod, create=not early)
         if ro is None:
             return False

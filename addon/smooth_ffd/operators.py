@@ -31,7 +31,7 @@ class OBJECT_OT_smooth_ffd_add(bpy.types.Operator):
             # A selected lattice becomes the modifier's lattice, like Ctrl+P > Lattice Deform.
             mod = api.add_smooth_ffd(obj, _lattice_candidate(context, obj),
                                      self.viewport_level, self.render_level)
-        except (TypeError, ValueError) as e:
+        except (TypeError, ValueError, RuntimeError) as e:
             self.report({'ERROR'}, str(e))
             return {'CANCELLED'}
         self.report({'INFO'}, f"{mod.name}: {api.status(mod)}")
@@ -89,7 +89,11 @@ class OBJECT_OT_smooth_ffd_remove(_ModifierOperator, bpy.types.Operator):
         obj, mod = self._modifier(context)
         if mod is None:
             return {'CANCELLED'}
-        api.remove_smooth_ffd(obj, mod)
+        try:
+            api.remove_smooth_ffd(obj, mod)
+        except RuntimeError as e:   # linked data, or a modifier from an override's library
+            self.report({'ERROR'}, str(e))
+            return {'CANCELLED'}
         return {'FINISHED'}
 
 
@@ -136,7 +140,11 @@ class OBJECT_OT_smooth_ffd_bake_clear(_ModifierOperator, bpy.types.Operator):
         obj, mod = self._modifier(context)
         if mod is None:
             return {'CANCELLED'}
-        api.clear_bake(obj, mod)
+        try:
+            api.clear_bake(obj, mod)
+        except RuntimeError as e:
+            self.report({'ERROR'}, str(e))
+            return {'CANCELLED'}
         return {'FINISHED'}
 
 

@@ -42,10 +42,11 @@ def _load_addon():
 # The add-on and its modules: check scripts import them from here, never by name, so that
 # they test whichever copy this is (installed: bl_ext.user_default.smooth_ffd on 4.2+).
 smooth_ffd = _load_addon()
-MODULES = ("api", "bake", "carry", "compat", "core", "handlers", "inputs", "latticeio", "meshio",
-           "modifier_update", "nodegroup", "result_arrays")
-(api, bake, carry, compat, core, handlers, inputs, latticeio, meshio, modifier_update, nodegroup,
- result_arrays) = (importlib.import_module(f"{smooth_ffd.__name__}.{m}") for m in MODULES)
+MODULES = ("api", "bake", "carry", "compat", "core", "handlers", "inputs", "latticeio", "linked",
+           "meshio", "modifier_update", "nodegroup", "result_arrays")
+(api, bake, carry, compat, core, handlers, inputs, latticeio, linked, meshio, modifier_update,
+ nodegroup, result_arrays) = (importlib.import_module(f"{smooth_ffd.__name__}.{m}")
+                              for m in MODULES)
 
 _registered = INSTALLED   # enabling an installed add-on registers it
 _results = []

@@ -22,11 +22,15 @@ second library is the same with frames 1-4 baked. Shot files link the collection
   whose float inputs are not overridable, as a 3.4 library of an older add-on) and animates
   again;
   a level change and a moved lattice object follow;
-- the library files are never modified (bytes and modification time).
+- made with Object > Library Override > Make and saved, the shot follows a library changed
+  afterwards (Blender resyncs the override on load), keeping its result object;
+- the library files are never modified (bytes and modification time; the changed library
+  is a copy).
 """
 import hashlib
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -130,9 +134,9 @@ def file_state(path):
 
 def new_shot(path, mode):
     """An empty file linking the library's collection: 'instance' (an empty instancing it,
-    File > Link's default), 'scene' (the collection linked into the scene) or 'override'
+    File > Link's default), 'scene' (the collection linked into the scene), 'override'
     (a library override of the instanced collection, the instance removed as Blender's
-    Make Library Override does).
+    Make Library Override does) or 'operator' (that operator itself).
     Returns the scene and, read before the add-on saw anything, the state of the linked
     character (untouched_state)."""
     bpy.ops.wm.read_homefile(use_empty=True)
@@ -153,6 +157,13 @@ def new_shot(path, mode):
             if mode == "override":
                 coll.override_hierarchy_create(sc, bpy.context.view_layer, reference=empty)
                 bpy.data.objects.remove(empty)
+            elif mode == "operator":   # Object > Library Override > Make, on the empty
+                bpy.context.view_layer.objects.active = empty
+                empty.select_set(True)
+                with bpy.context.temp_override(active_object=empty, object=empty,
+                                               selected_objects=[empty]):
+                    result = bpy.ops.object.make_override_library()
+                T.check("Make Library Override ran", result == {'FINISHED'}, str(result))
     sc.frame_set(1)
     T.update()
     return sc, state
@@ -438,13 +449,53 @@ def test_override(lib):
     T.check("override reopened: nothing linked written", untouched_state(lib_char) == state)
 
 
+def test_override_resync(lib):
+    """Made with the operator, saved, then the library changes (a lattice point moves, an
+    object joins the collection: Blender resyncs the override on load): the override keeps
+    its result object and follows the new library."""
+    copy = os.path.join(tempfile.mkdtemp(), "lib.blend")
+    shutil.copyfile(lib["paths"]["lib"], copy)
+    sc, _state = new_shot(copy, "operator")
+    char = find("char", "override")
+    for f in (1, 3):
+        sc.frame_set(f)
+        T.update()
+        same_mesh(f"override by the operator: frame {f} is the library's live result",
+                  evaluated(char), lib["live"][f], lib["size"])
+    ro = modifier_update.result_object(char, char.modifiers[0], create=False)
+    uid = ro.get(modifier_update.UID_KEY) if ro is not None else None
+    shot = os.path.join(os.path.dirname(copy), "shot.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=shot)
+    bpy.ops.wm.open_mainfile(filepath=copy)    # the library's author edits it
+    bpy.data.objects["lat"].data.points[0].co_deform.x -= 0.3
+    bpy.data.collections["Character"].objects.link(bpy.data.objects.new("extra", None))
+    bpy.ops.wm.save_mainfile()
+    bpy.ops.wm.open_mainfile(filepath=shot)
+    sc = bpy.context.scene
+    char, ref, lat = (find(n, "override") for n in ("char", "char.ref", "lat"))
+    T.check("library changed: the override resynced (the new object is in it)",
+            any(o.name == "extra" and o.override_library is not None for o in bpy.data.objects))
+    ro = modifier_update.result_object(char, char.modifiers[0], create=False)
+    T.check("library changed: the override keeps its local result object",
+            ro is not None and ro.get(modifier_update.UID_KEY) == uid)
+    for f in (1, 4):
+        sc.frame_set(f)
+        T.update()
+        got, exp = evaluated(char)["pos"], evaluated(ref)["pos"]
+        err = np.abs(got[:len(exp)] - exp).max() / T.lattice_size(char, lat)
+        moved = np.abs(exp - lib["live"][f]["pos"][:len(exp)]).max() / lib["size"]
+        T.check(f"library changed: frame {f} follows the new lattice",
+                err <= TOL and moved > 1e-3 and f", frame {f}, " in
+                smooth_ffd.status(char.modifiers[0]), f"err {err:.1e} (moved {moved:.1e})")
+
+
 def main():
     T.setup()
     folder = tempfile.mkdtemp()
     paths, live, live_render, src, size = build_library(folder)
     before = {k: file_state(p) for k, p in paths.items()}
     lib = {"paths": paths, "live": live, "live_render": live_render, "src": src, "size": size}
-    for fn in (test_linked, test_linked_bake, test_override):
+    for fn in (test_linked, test_linked_bake, test_override, test_override_resync):
         T.run(fn.__name__, fn, lib)
     after = {k: file_state(p) for k, p in paths.items()}
     T.check("the library files are never modified (bytes, modification time)", after == before,

@@ -21,7 +21,8 @@ second library is the same with frames 1-4 baked. Shot files link the collection
   add-on shows frame 4's result on frame 4 and the source on frame 2; also from a library
   whose float inputs are not overridable, as a 3.4 library of an older add-on) and animates
   again;
-  a level change and a moved lattice object follow;
+  a bake in the shot shows the library's render-level results; a level change and a moved
+  lattice object follow;
 - made with Object > Library Override > Make and saved, the shot follows a library changed
   afterwards (Blender resyncs the override on load), keeping its result object;
 - the library files are never modified (bytes and modification time; the changed library
@@ -427,6 +428,21 @@ def test_override(lib):
             ro.get(modifier_update.UID_KEY) == uid and ro.library is None,
             f"{ro and ro.name_full}")
     check_frames("override reopened", sc, char, ref, lat, lib)
+
+    # A bake in the shot: local frame meshes, recorded in the override's inputs.
+    smooth_ffd.bake_smooth_ffd(char, mod, FRAMES[0], FRAMES[-1])
+    for f in FRAMES:
+        sc.frame_set(f)
+        T.update()
+        same_mesh(f"override baked in the shot: frame {f} is the library's render-level "
+                  f"result", evaluated(char), lib["live_render"][f], lib["size"])
+    host = compat.get_modifier_input(mod, "Bake Object")
+    T.check("override baked in the shot: the bake is local",
+            host is not None and host.library is None and host.override_library is None)
+    smooth_ffd.clear_bake(char, mod)
+    sc.frame_set(2)
+    T.update()
+    same_mesh("override, bake cleared: live again", evaluated(char), lib["live"][2], lib["size"])
 
     # Edits in the shot: a level and the lattice object's place (override properties).
     compat.set_modifier_input(mod, "Viewport Level", 2)

@@ -305,6 +305,12 @@ PYBIND11_MODULE(_core, m) {
                              "that no patch folds (docs/algorithm.md)")
       .def_property_readonly("bounded_sub_vertices", [](const Plan& p) { return p.bounded_sub_vertices; },
                              "the same for the vertices of the sub-mesh clipped by the knot planes")
+      .def_property_readonly("turned_normals", [](const Plan& p) { return p.turned_normals; },
+                             "input triangle corners whose shading normal was turned toward the "
+                             "geometry, which cannot follow it (docs/algorithm.md)")
+      .def_property_readonly("turned_sub_normals", [](const Plan& p) { return p.turned_sub_normals; },
+                             "the same for the corners of the patches (the sub-mesh clipped by the "
+                             "knot planes), turned after its own bound")
       .def("render_vertices",
            [](const Plan& p) {
              return py::make_tuple(copy_out(p.render_position, {(py::ssize_t)p.render_vertices}),

@@ -11,6 +11,7 @@
 #include "smoothffd/core/parallel.hpp"
 #include "smoothffd/mesh/triangulate.hpp"
 #include "smoothffd/plan/clip.hpp"
+#include "smoothffd/plan/corner_normals.hpp"
 #include "smoothffd/plan/edges.hpp"
 #include "smoothffd/plan/fit_matrix.hpp"
 #include "smoothffd/plan/render_vertices.hpp"
@@ -33,24 +34,6 @@ struct StageTimer {
   }
 };
 
-void normalize_or(double* v, const double* fallback) {
-  double l = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-  if (l > 1e-30 && std::isfinite(l)) {
-    for (int i = 0; i < 3; ++i) v[i] /= l;
-  } else {
-    for (int i = 0; i < 3; ++i) v[i] = fallback[i];
-  }
-}
-
-void triangle_normal(const std::vector<double>& X, const int* t, double* n) {
-  const double *a = &X[3 * (size_t)t[0]], *b = &X[3 * (size_t)t[1]], *c = &X[3 * (size_t)t[2]];
-  double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-  double w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-  n[0] = u[1] * w[2] - u[2] * w[1];
-  n[1] = u[2] * w[0] - u[0] * w[2];
-  n[2] = u[0] * w[1] - u[1] * w[0];
-}
-
 void validate(const InputMesh& m) {
   size_t V = m.positions.size() / 3, C = m.corner_vertex.size();
   if (m.positions.size() % 3) throw std::invalid_argument("positions: expected #V x 3 values");
@@ -69,68 +52,6 @@ void validate(const InputMesh& m) {
     throw std::invalid_argument("vertex_weights: expected one weight per vertex");
   for (double x : m.positions)
     if (!std::isfinite(x)) throw std::invalid_argument("positions: contain NaN or Inf");
-}
-
-// Unit normal at every triangle corner (#T x 3 x 3): the input split normals, or smooth
-// area-weighted vertex normals when none are given.
-std::vector<double> triangle_corner_normals(const InputMesh& m, const Triangulation& tr,
-                                            const std::vector<int>& tv) {
-  size_t T = tr.face.size(), V = m.positions.size() / 3;
-  std::vector<double> cn(9 * T), fn(3 * T);
-  const double up[3] = {0, 0, 1};
-  for (size_t t = 0; t < T; ++t) triangle_normal(m.positions, &tv[3 * t], &fn[3 * t]);
-  std::vector<double> vn;
-  if (m.corner_normal.empty()) {
-    vn.assign(3 * V, 0.0);
-    for (size_t t = 0; t < T; ++t)
-      for (int k = 0; k < 3; ++k)
-        for (int i = 0; i < 3; ++i) vn[3 * (size_t)tv[3 * t + k] + i] += fn[3 * t + i];
-  }
-  for (size_t t = 0; t < T; ++t) {
-    double face[3] = {fn[3 * t], fn[3 * t + 1], fn[3 * t + 2]};
-    normalize_or(face, up);
-    for (int k = 0; k < 3; ++k) {
-      double* n = &cn[9 * t + 3 * k];
-      if (m.corner_normal.empty()) {
-        for (int i = 0; i < 3; ++i) n[i] = vn[3 * (size_t)tv[3 * t + k] + i];
-      } else {
-        for (int i = 0; i < 3; ++i) n[i] = m.corner_normal[3 * (size_t)tr.corners[3 * t + k] + i];
-      }
-      normalize_or(n, face);  // a zero input normal falls back to the face's own
-    }
-  }
-  return cn;
-}
-
-// Triangles of flat faces: faces whose every corner normal is within the sharp angle of the
-// face's own (Newell) normal, the normal Blender and most tools give a polygon. #T, 0 or 1.
-std::vector<uint8_t> flat_triangles(const InputMesh& m, const Triangulation& tr,
-                                    const std::vector<double>& tcn, double cos_tol) {
-  const size_t F = m.face_offset.size() - 1, T = tr.face.size();
-  std::vector<double> fn(3 * F, 0.0);
-  for (size_t f = 0; f < F; ++f) {
-    const int b = m.face_offset[f], e = m.face_offset[f + 1];
-    for (int c = b; c < e; ++c) {
-      const double* p = &m.positions[3 * (size_t)m.corner_vertex[c]];
-      const double* q = &m.positions[3 * (size_t)m.corner_vertex[c + 1 < e ? c + 1 : b]];
-      fn[3 * f] += (p[1] - q[1]) * (p[2] + q[2]);
-      fn[3 * f + 1] += (p[2] - q[2]) * (p[0] + q[0]);
-      fn[3 * f + 2] += (p[0] - q[0]) * (p[1] + q[1]);
-    }
-    const double l = std::sqrt(fn[3 * f] * fn[3 * f] + fn[3 * f + 1] * fn[3 * f + 1] + fn[3 * f + 2] * fn[3 * f + 2]);
-    for (int i = 0; i < 3; ++i) fn[3 * f + i] = l > 0 && std::isfinite(l) ? fn[3 * f + i] / l : 0.0;
-  }
-  std::vector<uint8_t> face_flat(F, 1);
-  for (size_t t = 0; t < T; ++t) {
-    const double* n = &fn[3 * (size_t)tr.face[t]];
-    for (int k = 0; k < 3; ++k) {
-      const double* c = &tcn[9 * t + 3 * k];
-      if (!(c[0] * n[0] + c[1] * n[1] + c[2] * n[2] >= cos_tol)) face_flat[tr.face[t]] = 0;
-    }
-  }
-  std::vector<uint8_t> flat(T);
-  for (size_t t = 0; t < T; ++t) flat[t] = face_flat[tr.face[t]];
-  return flat;
 }
 
 constexpr int kMaxPlanLevel = 1024;  // 1M triangles a patch; the Python API stops at 64
@@ -286,6 +207,9 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   }
   for (uint8_t f : adjust.flat) plan.flat_triangles += f;
   const std::vector<double>& acn = adjust.corner;
+  // The shading normals, turned where the geometry cannot follow them (rest_surface.hpp).
+  std::vector<double> shade(tcn);
+  plan.turned_normals = bound_render_normals(adjust, shade, nullptr);
   std::vector<double> moved(clip.flat);
   std::vector<double> sub_weight(SV, 1.0);
   CancelPoller poller(256);
@@ -320,7 +244,7 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
     for (int k = 0; k < 3; ++k)
       for (int i = 0; i < 3; ++i) {
         Pt[3 * k + i] = X[3 * (size_t)tv[3 * t + k] + i];
-        Nt[3 * k + i] = tcn[9 * (size_t)t + 3 * k + i];
+        Nt[3 * k + i] = shade[9 * (size_t)t + 3 * k + i];
         At[3 * k + i] = acn[9 * (size_t)t + 3 * k + i];
       }
     for (int c = 0; c < 3; ++c) {
@@ -338,7 +262,6 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
       for (int i = 0; i < 3; ++i) {
         render_d[9 * (size_t)p + 3 * c + i] = rn[i];
         adjust_d[9 * (size_t)p + 3 * c + i] = an[i];
-        plan.patch_render_normal[9 * (size_t)p + 3 * c + i] = (float)rn[i];
       }
     }
   }
@@ -349,10 +272,38 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   plan.patch_triangle = clip.patch_tri;
   plan.patch_bary = clip.patch_bary;
 
-  // 4. Sub-mesh adjacency and the sharpness of its edge ends.
+  // 4. Sub-mesh adjacency. The patches the evaluators make at rest from the clip vertices on
+  // the rest surface must not fold either (pieces next to cuts can be thin): the same bound on
+  // the sub-mesh, then its shading normals turned where its geometry cannot follow them. A
+  // turn can split a vertex's normals (sharp ends: other edge control points), so both repeat
+  // until nothing turns (each round lowers some trust; at most 8 rounds).
   EdgeTable sub = build_edges(plan.patch_vertex);
   const int E = sub.count();
-  std::vector<uint8_t> sharp = classify_sharp_ends(sub, plan.patch_vertex, render_d, cos_tol);
+  std::vector<uint8_t> sharp;
+  {
+    // A patch that is a whole input triangle is that triangle's rest patch, checked above.
+    std::vector<uint8_t> sub_flat(P), check(P), turned(3 * (size_t)P, 0);
+    std::vector<int> pieces(tv.size() / 3, 0);
+    for (int p = 0; p < P; ++p) pieces[clip.patch_tri[p]]++;
+    for (int p = 0; p < P; ++p) {
+      sub_flat[p] = adjust.flat[clip.patch_tri[p]];
+      check[p] = pieces[clip.patch_tri[p]] > 1;
+    }
+    AdjustNormals sub_adjust(moved, plan.patch_vertex, adjust_d, sub_flat);
+    RestSurface sub_rest;
+    for (int round = 0;; ++round) {
+      sharp = classify_sharp_ends(sub, plan.patch_vertex, render_d, cos_tol);
+      plan.bounded_sub_vertices = bound_adjust_normals(moved, plan.patch_vertex, sub, sharp, render_d, sub_adjust,
+                                                       sub_rest, nullptr, nullptr, &check);
+      if (round == 7 || !bound_render_normals(sub_adjust, render_d, &turned)) break;
+      check.assign(P, 1);
+    }
+    for (uint8_t f : turned) plan.turned_sub_normals += f;
+    for (size_t i = 0; i < plan.patch_adjust_normal.size(); ++i) {
+      plan.patch_adjust_normal[i] = (float)sub_adjust.corner[i];
+      plan.patch_render_normal[i] = (float)render_d[i];
+    }
+  }
   plan.edge_vertex = sub.vertex;
   plan.edge_patch = sub.side;
   plan.edge_flags.resize(E);
@@ -375,23 +326,6 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
       plan.edge_slot[4 * (size_t)e + 2 * s] = (uint8_t)slot_of(plan.patch_vertex, p, sub.vertex[2 * e]);
       plan.edge_slot[4 * (size_t)e + 2 * s + 1] = (uint8_t)slot_of(plan.patch_vertex, p, sub.vertex[2 * e + 1]);
     }
-  }
-  // The patches the evaluators make at rest from the clip vertices on the rest surface must not
-  // fold either (pieces next to cuts can be thin): the same bound on the sub-mesh.
-  {
-    // A patch that is a whole input triangle is that triangle's rest patch, checked above.
-    std::vector<uint8_t> sub_flat(P), clipped(P);
-    std::vector<int> pieces(tv.size() / 3, 0);
-    for (int p = 0; p < P; ++p) pieces[clip.patch_tri[p]]++;
-    for (int p = 0; p < P; ++p) {
-      sub_flat[p] = adjust.flat[clip.patch_tri[p]];
-      clipped[p] = pieces[clip.patch_tri[p]] > 1;
-    }
-    AdjustNormals sub_adjust(moved, plan.patch_vertex, adjust_d, sub_flat);
-    RestSurface sub_rest;
-    plan.bounded_sub_vertices = bound_adjust_normals(moved, plan.patch_vertex, sub, sharp, render_d, sub_adjust,
-                                                     sub_rest, nullptr, nullptr, &clipped);
-    for (size_t i = 0; i < plan.patch_adjust_normal.size(); ++i) plan.patch_adjust_normal[i] = (float)sub_adjust.corner[i];
   }
   plan.patch_edge = sub.tri_edge;
   plan.patch_edge_reversed.resize(3 * (size_t)P);

@@ -95,6 +95,9 @@ struct Plan {
   int bounded_vertices = 0; // input vertices whose normals were blended toward their
                             // triangles' own so that no patch folds (AdjustNormals::trust < 1)
   int bounded_sub_vertices = 0;  // the same on the clipped sub-mesh (its patches at rest)
+  int turned_normals = 0;   // input triangle corners whose shading normal was turned toward
+                            // the geometry, which cannot follow it (bound_render_normals)
+  int turned_sub_normals = 0;  // patch corners turned again on the sub-mesh (its own bound)
 
   // --- lattice tables
   std::vector<AxisPieceF> pieces;  // the three axes' pieces, concatenated

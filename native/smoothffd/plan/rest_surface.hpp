@@ -90,6 +90,20 @@ int bound_adjust_normals(const std::vector<double>& X, const std::vector<int>& t
                          const std::vector<double>* piece_bary = nullptr,
                          const std::vector<uint8_t>* check = nullptr);
 
+// The shading normals the geometry can carry through a deformation. The output's normals are
+// the rest normals mapped by cof J, its surface the rest patch mapped by J; two directions
+// theta apart end up as much as 2 atan(k tan(theta / 2)) apart under a Jacobian of condition
+// number k, past 90 degrees (triangles reversed against their normals) once
+// theta > 2 atan(1 / k). Where the geometry cannot follow a corner's normal (its adjustment
+// normal was blended toward the triangle's own, or the triangle is flat), that normal is
+// turned toward the adjustment normal until they are at most acos(kShadeCos) apart:
+// 2 atan(1 / 2) = 53.13 degrees, cos = 0.6, so that no lattice whose Jacobian has a condition
+// number under 2 reverses them. render: #T x 3 x 3 unit normals, changed in place; turned
+// (#T x 3, optional): set to 1 at each corner turned. Returns the number of corners turned
+// (those already at the limit, within rounding, are left).
+constexpr double kShadeCos = 0.6;
+int bound_render_normals(const AdjustNormals& an, std::vector<double>& render, std::vector<uint8_t>* turned);
+
 // Point of triangle t's rest patch at barycentric coordinates b (of its corners 0, 1, 2).
 void rest_surface_point(const RestSurface& rs, const std::vector<double>& X,
                         const std::vector<int>& tv, const EdgeTable& edges, int t,

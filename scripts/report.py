@@ -380,10 +380,9 @@ def real_meshes_section(after):
         "with the fold bound alone) all lay in one triangle of a strongly non-planar quad, its "
         "normals 81-90 degrees from it: the deformation turned them past 90 degrees from the "
         "triangle's own image. The shading bound (docs/algorithm.md) turns such normals toward "
-        "the geometry (18 corners of Suzanne, 9 of the figure, whose volume change moves by "
-        "under 1e-5; no other corpus mesh changes), so that no lattice whose Jacobian has a "
-        "condition number under 2 reverses a triangle. The sphere and cube figures above did "
-        "not change.",
+        "the geometry (18 corners of Suzanne; no other corpus mesh changes), so that no lattice "
+        "whose Jacobian has a condition number under 2 reverses a triangle. The sphere and cube "
+        "figures above did not change.",
         "",
     ]
 

@@ -164,7 +164,7 @@ def test_no_reversed_triangles(name, lat):
     """None at any level, Suzanne included: one of its triangles carries normals 81-90 degrees
     from its own plane, which the 45-degree twist turned past 90 degrees from the triangle's
     exact image (3 / 27 / 108 reversed at levels 1 / 3 / 6 before its shading normals were
-    bounded; 1 at level 6 under the coarse 40-degree bend)."""
+    bounded; 1 at level 6 under the fine bend)."""
     mesh = load(name)
     lattice = lattice_for(mesh, **LATTICES[lat])
     for level in (1, 3, 6):

@@ -297,14 +297,14 @@ int bound_adjust_normals(const std::vector<double>& X, const std::vector<int>& t
   return bounded;
 }
 
-int bound_render_normals(const AdjustNormals& an, std::vector<double>& render, std::vector<uint8_t>* marks) {
-  int turned = 0;
+int bound_render_normals(const AdjustNormals& an, std::vector<double>& render, std::vector<uint8_t>* turned) {
+  int count = 0;
   for (size_t c = 0; c < render.size() / 3; ++c) {
     double* r = &render[3 * c];
     const double* a = &an.corner[3 * c];
     const double d = dot3(r, a);
     if (d >= kShadeCos - 1e-9) continue;
-    if (marks) (*marks)[c] = 1;
+    if (turned) (*turned)[c] = 1;
     // r' = cos(theta) a + sin(theta) u, u the unit part of r across a (a itself where r is
     // opposite to a).
     double u[3] = {r[0] - d * a[0], r[1] - d * a[1], r[2] - d * a[2]};
@@ -313,9 +313,9 @@ int bound_render_normals(const AdjustNormals& an, std::vector<double>& render, s
       for (int i = 0; i < 3; ++i) r[i] = kShadeCos * a[i] + s * u[i];
     else
       for (int i = 0; i < 3; ++i) r[i] = a[i];
-    ++turned;
+    ++count;
   }
-  return turned;
+  return count;
 }
 
 RestSurface build_rest_surface(const std::vector<double>& X, const std::vector<int>& tv,

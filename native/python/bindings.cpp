@@ -105,9 +105,12 @@ py::array_t<float> output_array(const py::object& given, std::vector<py::ssize_t
   return a;
 }
 
+// D: (nu*nv*nw, components), components 3, or 4 for a plan with point weights (Plan::components).
 void check_values(const Plan& plan, const Arr<float>& D) {
-  if (D.ndim() != 2 || D.shape(1) != 3 || D.shape(0) != (py::ssize_t)plan.dims[0] * plan.dims[1] * plan.dims[2])
-    throw std::invalid_argument("control values: expected an (nu*nv*nw, 3) array matching the plan");
+  if (D.ndim() != 2 || D.shape(1) != plan.components ||
+      D.shape(0) != (py::ssize_t)plan.dims[0] * plan.dims[1] * plan.dims[2])
+    throw std::invalid_argument("control values: expected an (nu*nv*nw, " + std::to_string(plan.components) +
+                                ") array matching the plan");
 }
 
 py::tuple run_evaluator(Evaluator& ev, const Arr<float>& D, const py::object& out_positions,
@@ -239,14 +242,18 @@ PYBIND11_MODULE(_core, m) {
           py::arg("degree"), py::arg("knots"), py::arg("counts"), py::arg("object_to_param"))
       .def_static(
           "blender",
-          [](std::vector<std::string> types, std::vector<int> counts, Arr<double> object_to_param) {
+          [](std::vector<std::string> types, std::vector<int> counts, Arr<double> object_to_param,
+             bool point_weights) {
             per_axis(types, "interpolation"), per_axis(counts, "counts");
             auto s = std::make_shared<LatticeSpec>();
             for (int a = 0; a < 3; ++a) s->axes[a] = AxisBasis::blender(parse_blender_interp(types[a]), counts[a]);
             set_map(*s, object_to_param);
+            s->components = point_weights ? 4 : 3;
             return s;
           },
-          py::arg("interpolation"), py::arg("counts"), py::arg("object_to_param"))
+          py::arg("interpolation"), py::arg("counts"), py::arg("object_to_param"), py::arg("point_weights") = false,
+          "point_weights: control values carry a 4th number, the point's weight (Blender's lattice vertex "
+          "group): F = p + w^2 s d (LatticeSpec::components)")
       .def("planes",
            [](const LatticeSpec& s) {
              py::list out;
@@ -262,6 +269,8 @@ PYBIND11_MODULE(_core, m) {
                                                      s.axes[2].pieces().size());
                              },
                              "polynomial pieces (knot spans) per axis; build_plan takes at most 1023")
+      .def_property_readonly("components", [](const LatticeSpec& s) { return s.components; },
+                             "control values a point: 3, or 4 with point weights")
       .def_property_readonly("degrees",
                              [](const LatticeSpec& s) {
                                return py::make_tuple(s.axes[0].degree(), s.axes[1].degree(), s.axes[2].degree());
@@ -269,7 +278,7 @@ PYBIND11_MODULE(_core, m) {
       .def("evaluate",
            [](const LatticeSpec& s, Arr<double> points, Arr<double> D, Arr<double> weights) {
              py::ssize_t N = points.size() / 3;
-             if ((size_t)D.size() != 3 * (size_t)s.count())
+             if ((size_t)D.size() != (size_t)s.components * (size_t)s.count())
                throw std::invalid_argument("control values: wrong size for this lattice");
              if (weights.size() != N) throw std::invalid_argument("weights: one per point");
              py::array_t<double> F({N, (py::ssize_t)3}), J({N, (py::ssize_t)3, (py::ssize_t)3});
@@ -320,6 +329,8 @@ PYBIND11_MODULE(_core, m) {
            "(an output vertex duplicated where normals split) and the triangles in render vertices")
       .def("render_owner", [](const Plan& p) { return copy_out(p.render_owner, {(py::ssize_t)p.render_vertices, 2}); })
       .def_property_readonly("dims", [](const Plan& p) { return py::make_tuple(p.dims[0], p.dims[1], p.dims[2]); })
+      .def_property_readonly("components", [](const Plan& p) { return p.components; },
+                             "control values a point: 3, or 4 with point weights (Blender's lattice vertex group)")
       .def_property_readonly("bytes", &Plan::bytes)
       .def_property_readonly("build_ms",
                              [](const Plan& p) { return times_dict(p.build_ms); })
@@ -510,8 +521,7 @@ PYBIND11_MODULE(_core, m) {
       .def("evaluate_device",
            [](CudaEvaluator& ev, Arr<float> D) {
              const Plan& plan = ev.plan();
-             if ((size_t)D.size() != 3 * (size_t)plan.dims[0] * plan.dims[1] * plan.dims[2])
-               throw std::invalid_argument("control values: expected an (nu*nv*nw, 3) array matching the plan");
+             check_values(plan, D);
              StageTimes t;
              {
                py::gil_scoped_release release;

@@ -2,8 +2,9 @@
 // evaluator runs one thread an element:
 // * batched sampling (eval/cpu_sampling.hpp: kLanes samples of one lattice box at a time) vs
 //   sample_point: same values and Jacobians up to float rounding, for every sample of random
-//   meshes in random lattices (every supported degree, both kinds, 1-point axes), and every
-//   sample written exactly once by the batches;
+//   meshes in random lattices (every supported degree, both kinds, 1-point axes, with and
+//   without point weights), and every sample written exactly once by the batches; with point
+//   weights both also against LatticeSpec::evaluate (double);
 // * the fit with the centre row on lanes (eval/cpu_fitting.hpp) vs fit_patch_into, including
 //   columns whose Jacobian is singular (the normalization fallbacks);
 // * the grid normals on lanes (eval/cpu_tessellation.hpp) vs tessellate_normal, including
@@ -27,11 +28,12 @@ using namespace sffd_test;
 TEST(CpuSampling, BatchesMatchScalarSamplePoint) {
   std::mt19937 rng(7);
   std::uniform_real_distribution<float> jitter(-0.2f, 0.2f);
-  int checked = 0;
+  int checked = 0, weighted = 0;
   for (int trial = 0; trial < 40; ++trial) {
     LatticeSpec s = random_lattice(rng);
     if (trial >= 34) s = bspline_box(trial % 2 ? 5 : 4, 7, -0.1, 1.1);  // the 6-term contraction
-    InputMesh m = random_mesh(rng);
+    if (trial % 3 == 2) s.components = 4;  // point weights (Blender's lattice vertex group)
+    InputMesh m = random_mesh(rng);  // half of them with per-vertex factors
     PlanOptions opt;
     opt.level = 2;
     Plan plan;
@@ -42,6 +44,9 @@ TEST(CpuSampling, BatchesMatchScalarSamplePoint) {
     }
     std::vector<float> D = zero_values(s);
     for (float& d : D) d = jitter(rng);
+    if (s.components == 4)  // the weights in [0, 1]
+      for (size_t i = 3; i < D.size(); i += 4) D[i] = 2.5f * (D[i] + 0.2f);
+    ASSERT_EQ(plan.components, s.components);
     const PlanView pv = host_view(plan);
     const SampleBatches sb = make_sample_batches(plan);
     // Every sample in exactly one batch, every batch one box and at most kLanes samples.
@@ -73,10 +78,19 @@ TEST(CpuSampling, BatchesMatchScalarSamplePoint) {
       }
       for (int r = 0; r < 9; ++r)
         ASSERT_NEAR(J[9 * i + r], j[r], 2e-5 * std::max(1.0, (double)std::fabs(j[r]))) << "sample " << i;
+      if (s.components == 4) {
+        const std::vector<double> Dd(D.begin(), D.end());
+        const double p[3] = {pv.sample_position[3 * i], pv.sample_position[3 * i + 1], pv.sample_position[3 * i + 2]};
+        double fd[3], jd[9];
+        s.evaluate(p, Dd.data(), pv.sample_weight[i], fd, jd);
+        for (int r = 0; r < 3; ++r) ASSERT_NEAR(f[r], fd[r], 2e-6 * scale) << "weighted sample " << i;
+        ++weighted;
+      }
       ++checked;
     }
   }
   EXPECT_GT(checked, 1000);
+  EXPECT_GT(weighted, 300);
 }
 
 TEST(CpuFitting, LanesMatchScalarFitPatch) {

@@ -65,7 +65,7 @@ inline LatticeSpec bspline_box(int p, int n, double lo = 0.0, double hi = 1.0) {
 
 // Control displacements that make the B-spline volume the identity: all zero (F = p + W D).
 inline std::vector<float> zero_values(const LatticeSpec& s) {
-  return std::vector<float>(3 * (size_t)s.count(), 0.0f);
+  return std::vector<float>((size_t)s.components * s.count(), 0.0f);
 }
 
 // Mesh of triangles only.

@@ -101,11 +101,13 @@ _F32_LIMIT = 1e37
 
 
 def _control_values_f32(lat):
-    values = lat.control_values().reshape(-1, 3)
-    big = float(np.abs(values).max(initial=0.0))
-    if not big <= _F32_LIMIT:
-        raise ValueError(f"control_points/points: displacements up to {big:.3g} exceed the "
-                         f"float32 range the core computes in (limit {_F32_LIMIT:g})")
+    values = lat._core_values()   # (n, 3), or (n, 4): a BlenderLattice's point weights last
+    for col, what in ((slice(0, 3), "control_points/points: displacements"),
+                      (slice(3, 4), "point_weights: strength * weights")):
+        big = float(np.abs(values[:, col]).max(initial=0.0))
+        if not big <= _F32_LIMIT:
+            raise ValueError(f"{what} up to {big:.3g} exceed the float32 range the core "
+                             f"computes in (limit {_F32_LIMIT:g})")
     return np.ascontiguousarray(values, dtype=np.float32)
 
 

@@ -29,7 +29,12 @@ class _Lattice:
             pts = pts[None, :]
         if pts.ndim != 2 or pts.shape[1] != 3:
             raise ValueError(f"points: expected shape (N, 3), got {pts.shape}")
-        return self._spec.evaluate(pts, self._values.reshape(-1, 3), np.ones(len(pts)))
+        return self._spec.evaluate(pts, self._core_values(), np.ones(len(pts)))
+
+    def _core_values(self):
+        """(nu*nv*nw, C) float64: the control values as the core takes them (C = 3, or 4 for
+        a BlenderLattice with point weights)."""
+        return self._values.reshape(-1, 3)
 
     def _check_pieces(self, name):
         """The core numbers a sample's knot span in 10 bits an axis (build_plan: at most 1023)."""
@@ -197,10 +202,17 @@ class BlenderLattice(_Lattice):
     CARDINAL, CATMULL_ROM or BSPLINE. lattice_to_object: the 4x4 matrix M^-1 L (deformed
     object's world matrix inverse times the lattice object's). strength scales the
     displacement as the modifier's Strength does.
+
+    point_weights: None, or (nu, nv, nw) finite weights, index [u, v, w] as the points: the
+    lattice's vertex group (Lattice.vertex_group; a point not in the group weighs 0). Blender
+    then blends each vertex toward its deformed position by the weights interpolated with
+    the lattice's own basis, s(p) = sum W(p) w_ijk, its per-vertex factor f (strength times
+    the mesh's vertex-group weight) entering both sums: p' = p + f^2 s(p) d(p), where
+    p' = p + f d(p) without weights (docs/algorithm.md).
     """
 
     def __init__(self, rest_points, points, interpolation=("BSPLINE",) * 3,
-                 lattice_to_object=np.eye(4), strength=1.0):
+                 lattice_to_object=np.eye(4), strength=1.0, point_weights=None):
         rest = float_array(rest_points, "rest_points", shape=(None, None, None, 3))
         pts = float_array(points, "points", shape=(None, None, None, 3))
         if pts.shape != rest.shape:
@@ -223,6 +235,7 @@ class BlenderLattice(_Lattice):
             raise ValueError("lattice_to_object: the matrix is singular")
         self.strength = finite_float(strength, "strength")
         self.rest_points, self.points = rest, pts
+        self.point_weights = None if point_weights is None else self._weights(point_weights)
         self.interpolation = interp
         self.lattice_to_object = m
         counts = rest.shape[:3]
@@ -245,18 +258,40 @@ class BlenderLattice(_Lattice):
                 lambda: self._map)
         self._values = _finite("points", "strength * lattice_to_object (points - rest_points)",
                                lambda: self.strength * np.einsum("rc,uvwc->uvwr", m[:3, :3], pts - rest))
-        self._spec = _core.LatticeSpec.blender(list(interp), list(counts), self._map)
+        weighted = self.point_weights is not None
+        self._spec = _core.LatticeSpec.blender(list(interp), list(counts), self._map, point_weights=weighted)
         self._check_pieces("points")
-        self._key = ("blender", interp, counts, tuple(self._map.ravel()))
+        self._key = ("blender", interp, counts, tuple(self._map.ravel()), weighted)
 
-    def with_points(self, points):
+    def _weights(self, point_weights):
+        return float_array(point_weights, "point_weights", shape=self.points.shape[:3])
+
+    def _core_values(self):
+        values = self._values.reshape(-1, 3)
+        if self.point_weights is None:
+            return values
+        # The 4th value: the point's weight times the strength (Blender's factor enters the
+        # weight sum as it does the displacement sum: compose_weighted_deformation).
+        lw = _finite("point_weights", "strength * point_weights",
+                     lambda: self.strength * self.point_weights.reshape(-1, 1))
+        return np.concatenate([values, lw], axis=1)
+
+    def with_points(self, points, point_weights=None):
         """Same structure (rest points, interpolation, matrix), new deformed points.
 
         The per-frame path: only the new points are checked and converted; the structure is
-        shared with this lattice."""
+        shared with this lattice. point_weights: new weights for a lattice that has them
+        (None keeps the current ones); a lattice without weights takes none (adding them
+        changes the structure: build a new BlenderLattice)."""
         pts = float_array(points, "points", shape=self.points.shape)
+        if point_weights is not None and self.point_weights is None:
+            raise ValueError("point_weights: this lattice has none (its plan evaluates 3 values a "
+                             "point); build a new BlenderLattice(..., point_weights=...)")
+        weights = None if point_weights is None else self._weights(point_weights)
         lat = copy.copy(self)
         lat.points = pts
+        if weights is not None:
+            lat.point_weights = weights
         m = self.lattice_to_object
         lat._values = _finite("points", "strength * lattice_to_object (points - rest_points)",
                               lambda: self.strength * np.einsum("rc,uvwc->uvwr", m[:3, :3], pts - self.rest_points))

@@ -24,7 +24,7 @@
 extern "C" {
 #endif
 
-#define SFFD_CUDA_ABI_VERSION 4
+#define SFFD_CUDA_ABI_VERSION 5
 #define SFFD_CUDA_ENTRY "sffd_cuda_api_v1"
 
 /* What a failed call raises on the C++ side (cuda_loader.cpp). */

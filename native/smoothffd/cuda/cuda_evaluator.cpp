@@ -323,7 +323,7 @@ CudaEvaluator::CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string
   m.upload_tables(p);
 
   const long long N = p.output_vertices;
-  m.nD = 3 * (size_t)p.dims[0] * p.dims[1] * p.dims[2];
+  m.nD = (size_t)p.components * p.dims[0] * p.dims[1] * p.dims[2];
   m.D = m.arena.alloc<float>(m.nD);
   m.h_D.ensure(m.nD * sizeof(float));
   // The interior's first output vertex (and its render vertex) on a 128-byte line: a warp's

@@ -334,6 +334,12 @@ DeviceTables build_device_tables(const Plan& p, const TessellationTables& tt) {
     t.no_inline = "the plan's constraint columns are not where the inline kernel reads them";
     return t;
   }
+  if (p.components != 3) {
+    // Blender's lattice vertex group: the reference kernels evaluate the points' weights with
+    // the displacements (stages.hpp); the inline kernel's tables hold 3 values a point.
+    t.no_inline = "the lattice has point weights (a vertex group): the reference kernels evaluate them";
+    return t;
+  }
   // The boxes that hold samples, numbered in order of first use; box_of[s]: sample s's.
   std::vector<uint32_t> box_of((size_t)p.samples);
   {

@@ -53,6 +53,7 @@ __device__ __forceinline__ void compose_inline(float4 pw, const float m[3][3], c
 // float4 copy in shared memory (the weights mode); GlobalControls: the frame's upload, 3
 // floats a point, through the read-only cache (the global mode).
 struct SharedControls {
+  static constexpr int kComponents = 3;
   const float4* v;
   struct Row {
     const float4* p;
@@ -64,6 +65,7 @@ struct SharedControls {
   __device__ __forceinline__ Row row(int o) const { return Row{v + o}; }
 };
 struct GlobalControls {
+  static constexpr int kComponents = 3;
   const float* __restrict__ v;
   struct Row {
     const float* __restrict__ p;

@@ -47,12 +47,13 @@ __device__ __forceinline__ long long render_written(const PlanView& pv, const Pa
 
 // F and J of every sample, and the positions of the sub-vertices (input and clip vertices),
 // which are samples themselves. C terms an axis (the plan's largest, kernel_terms), registers
-// capped by MINB blocks of 256 an SM (C = 3: 4 blocks, 64 registers, measured fastest).
-template <int C, int MINB>
+// capped by MINB blocks of 256 an SM (C = 3: 4 blocks, 64 registers, measured fastest); NC
+// values a control point (pv.components: 4 with point weights).
+template <int C, int MINB, int NC>
 __global__ void __launch_bounds__(256, MINB) k_sample(PlanView pv, FrameView fv, const float* __restrict__ D) {
   int s = blockIdx.x * blockDim.x + threadIdx.x;
   if (s >= pv.samples) return;
-  sample_point_fixed<C>(pv, D, s, fv.sample_value + 3 * (long long)s, fv.sample_jacobian + 9 * (long long)s);
+  sample_point_fixed<C, NC>(pv, D, s, fv.sample_value + 3 * (long long)s, fv.sample_jacobian + 9 * (long long)s);
   if (s < pv.sub_vertices) tessellate_position(pv, fv, s);  // input and clip vertices
 }
 
@@ -133,17 +134,29 @@ constexpr int kThreads = 256;
 
 }  // namespace
 
-void launch_sample(int terms, const PlanView& pv, const FrameView& fv, const float* D, cudaStream_t stream) {
-  if (pv.samples <= 0) return;
+namespace {
+
+template <int NC>
+void launch_sample_nc(int terms, const PlanView& pv, const FrameView& fv, const float* D, cudaStream_t stream) {
   const unsigned grid = blocks_for(pv.samples, kThreads);
   // Register caps: 4 blocks of 256 an SM up to 3 terms, then 3, then 2.
   switch (terms) {
-    case 2: k_sample<2, 4><<<grid, kThreads, 0, stream>>>(pv, fv, D); break;
-    case 3: k_sample<3, 4><<<grid, kThreads, 0, stream>>>(pv, fv, D); break;
-    case 4: k_sample<4, 3><<<grid, kThreads, 0, stream>>>(pv, fv, D); break;
-    case 5: k_sample<5, 2><<<grid, kThreads, 0, stream>>>(pv, fv, D); break;
-    default: k_sample<kMaxTerms, 2><<<grid, kThreads, 0, stream>>>(pv, fv, D); break;
+    case 2: k_sample<2, 4, NC><<<grid, kThreads, 0, stream>>>(pv, fv, D); break;
+    case 3: k_sample<3, 4, NC><<<grid, kThreads, 0, stream>>>(pv, fv, D); break;
+    case 4: k_sample<4, 3, NC><<<grid, kThreads, 0, stream>>>(pv, fv, D); break;
+    case 5: k_sample<5, 2, NC><<<grid, kThreads, 0, stream>>>(pv, fv, D); break;
+    default: k_sample<kMaxTerms, 2, NC><<<grid, kThreads, 0, stream>>>(pv, fv, D); break;
   }
+}
+
+}  // namespace
+
+void launch_sample(int terms, const PlanView& pv, const FrameView& fv, const float* D, cudaStream_t stream) {
+  if (pv.samples <= 0) return;
+  if (pv.components == 4)
+    launch_sample_nc<4>(terms, pv, fv, D, stream);
+  else
+    launch_sample_nc<3>(terms, pv, fv, D, stream);
   CK_LAUNCH(k_sample);
 }
 

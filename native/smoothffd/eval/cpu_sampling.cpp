@@ -68,7 +68,8 @@ SFFD_ISA_BEGIN  // per-frame part: one copy per ISA (core/isa.hpp)
 namespace {
 
 // kJacobian = false leaves J unused, and the compiler drops its sums (all locals, unrolled).
-template <int C, bool kJacobian>
+// NC: values a control point (pv.components; 4: Blender's lattice vertex group, stages.hpp).
+template <int C, bool kJacobian, int NC>
 void sample_lanes(const PlanView& pv, const float* D, const int* ids, int n, float* value,
                   float* jacobian) {
   Lanes p[3], weight, local[3];
@@ -80,13 +81,16 @@ void sample_lanes(const PlanView& pv, const float* D, const int* ids, int n, flo
       for (int a = 0; a < 3; ++a) local[a].set(l, pv.sample_local[3 * (long long)s + a]);
   }
   int idx[3][C];
-  Lanes w[3][C], dw[3][C], val[3], grad[9], A[9], F[3], J[9];
+  Lanes w[3][C], dw[3][C], val[NC], grad[3 * NC], A[9], F[3], J[9];
   sample_weights<C, Lanes>(pv, p, pv.sample_piece[ids[0]], idx, w, dw, pv.sample_local ? local : nullptr);
-  tensor_eval_fixed<Lanes, float, C, C, C>(idx[0], w[0], dw[0], idx[1], w[1], dw[1], idx[2], w[2],
-                                           dw[2], D, pv.dims[1], pv.dims[2], val, grad);
+  tensor_eval_fixed<Lanes, float, C, C, C, NC>(idx[0], w[0], dw[0], idx[1], w[1], dw[1], idx[2], w[2],
+                                               dw[2], D, pv.dims[1], pv.dims[2], val, grad);
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) A[3 * r + c] = pv.param_map[4 * r + c];
-  compose_deformation<Lanes>(p, weight, val, grad, A, F, J);
+  if constexpr (NC == 4)
+    compose_weighted_deformation<Lanes>(p, weight, val, grad, A, F, J);
+  else
+    compose_deformation<Lanes>(p, weight, val, grad, A, F, J);
   for (int l = 0; l < n; ++l) {
     long long s = ids[l];
     for (int r = 0; r < 3; ++r) value[3 * s + r] = F[r][l];
@@ -95,15 +99,15 @@ void sample_lanes(const PlanView& pv, const float* D, const int* ids, int n, flo
   }
 }
 
-template <bool kJacobian>
+template <bool kJacobian, int NC>
 void sample_box(int terms, const PlanView& pv, const float* D, const int* ids, int n,
                 float* value, float* jacobian) {
   switch (terms) {
-    case 1: return sample_lanes<1, kJacobian>(pv, D, ids, n, value, jacobian);
-    case 2: return sample_lanes<2, kJacobian>(pv, D, ids, n, value, jacobian);
-    case 3: return sample_lanes<3, kJacobian>(pv, D, ids, n, value, jacobian);
-    case 4: return sample_lanes<4, kJacobian>(pv, D, ids, n, value, jacobian);
-    default: return sample_lanes<kMaxTerms, kJacobian>(pv, D, ids, n, value, jacobian);
+    case 1: return sample_lanes<1, kJacobian, NC>(pv, D, ids, n, value, jacobian);
+    case 2: return sample_lanes<2, kJacobian, NC>(pv, D, ids, n, value, jacobian);
+    case 3: return sample_lanes<3, kJacobian, NC>(pv, D, ids, n, value, jacobian);
+    case 4: return sample_lanes<4, kJacobian, NC>(pv, D, ids, n, value, jacobian);
+    default: return sample_lanes<kMaxTerms, kJacobian, NC>(pv, D, ids, n, value, jacobian);
   }
 }
 
@@ -113,8 +117,12 @@ void sample_batch(const PlanView& pv, const float* D, const SampleBatches& sb, l
                   float* value, float* jacobian) {
   const int* ids = sb.order.data() + sb.start[b];
   const int n = sb.start[b + 1] - sb.start[b];
-  if (jacobian) return sample_box<true>(sb.terms[b], pv, D, ids, n, value, jacobian);
-  return sample_box<false>(sb.terms[b], pv, D, ids, n, value, nullptr);
+  if (pv.components == 4) {
+    if (jacobian) return sample_box<true, 4>(sb.terms[b], pv, D, ids, n, value, jacobian);
+    return sample_box<false, 4>(sb.terms[b], pv, D, ids, n, value, nullptr);
+  }
+  if (jacobian) return sample_box<true, 3>(sb.terms[b], pv, D, ids, n, value, jacobian);
+  return sample_box<false, 3>(sb.terms[b], pv, D, ids, n, value, nullptr);
 }
 
 SFFD_ISA_END

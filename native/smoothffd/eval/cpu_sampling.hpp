@@ -28,6 +28,7 @@ SampleBatches make_sample_batches(const Plan& plan);
 SFFD_ISA_BEGIN  // one copy per ISA (core/isa.hpp)
 
 // F (3 floats) and J (9 floats) of every sample of batch b into value + 3 s, jacobian + 9 s.
+// D: pv.components values a control point.
 // jacobian == nullptr: values only (the derivative sums are skipped).
 void sample_batch(const PlanView& pv, const float* D, const SampleBatches& sb, long long b,
                   float* value, float* jacobian);

@@ -14,6 +14,7 @@ struct PlanView {
   int output_vertices, output_triangles, render_vertices;
   const AxisPieceF* pieces;
   int axis_offset[3], dims[3];
+  int components;  // control values a point: 3, or 4 with point weights (Plan::components)
   float param_map[12];
   const float* sample_position;
   const uint32_t* sample_piece;
@@ -73,6 +74,7 @@ inline PlanView host_view(const Plan& p) {
     v.axis_offset[a] = p.axis_offset[a];
     v.dims[a] = p.dims[a];
   }
+  v.components = p.components;
   for (int i = 0; i < 12; ++i) v.param_map[i] = p.param_map[i];
   v.sample_position = p.sample_position.data();
   v.sample_piece = p.sample_piece.data();

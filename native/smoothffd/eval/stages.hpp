@@ -53,40 +53,56 @@ SFFD_UNROLL
   return count;
 }
 
-// F = p + w value and J = I + w grad A at sample s (lattice/tensor_eval.hpp).
-SFFD_HD void finish_sample(const PlanView& pv, const float p[3], int s, const float value[3],
-                           const float grad[9], float* F, float* J) {
+// F and J at sample s from the contraction's value and grad (NC values a point; lattice/
+// tensor_eval.hpp): F = p + w value, J = I + w grad A (NC = 3), or Blender's lattice vertex
+// group blend F = p + w^2 s d (NC = 4: compose_weighted_deformation).
+template <int NC>
+SFFD_HD void finish_sample(const PlanView& pv, const float p[3], int s, const float* value,
+                           const float* grad, float* F, float* J) {
   float A[9];
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) A[3 * r + c] = pv.param_map[4 * r + c];
-  compose_deformation<float>(p, pv.sample_weight[s], value, grad, A, F, J);
+  if constexpr (NC == 4)
+    compose_weighted_deformation<float>(p, pv.sample_weight[s], value, grad, A, F, J);
+  else
+    compose_deformation<float>(p, pv.sample_weight[s], value, grad, A, F, J);
 }
 
-// 1. F(p) = p + w sum W(s(p)) D and J = dF/dp at sample s.
-SFFD_HD void sample_point(const PlanView& pv, const float* D, int s, float* F, float* J) {
+// sample_point with NC values a control point (pv.components).
+template <int NC>
+SFFD_HD void sample_point_nc(const PlanView& pv, const float* D, int s, float* F, float* J) {
   float p[3] = {pv.sample_position[3 * s], pv.sample_position[3 * s + 1], pv.sample_position[3 * s + 2]};
   int idx[3][kMaxTerms];
-  float w[3][kMaxTerms], dw[3][kMaxTerms], value[3], grad[9];
+  float w[3][kMaxTerms], dw[3][kMaxTerms], value[NC], grad[3 * NC];
   const float* local = pv.sample_local ? pv.sample_local + 3 * (long long)s : nullptr;
   int count = sample_weights<kMaxTerms>(pv, p, pv.sample_piece[s], idx, w, dw, local);
-  tensor_eval<float, float>(idx[0], w[0], dw[0], idx[1], w[1], dw[1], idx[2], w[2], dw[2], count, D,
-                            pv.dims[1], pv.dims[2], value, grad);
-  finish_sample(pv, p, s, value, grad, F, J);
+  tensor_eval<float, float, NC>(idx[0], w[0], dw[0], idx[1], w[1], dw[1], idx[2], w[2], dw[2], count, D,
+                                pv.dims[1], pv.dims[2], value, grad);
+  finish_sample<NC>(pv, p, s, value, grad, F, J);
+}
+
+// 1. F(p) = p + w sum W(s(p)) D and J = dF/dp at sample s (with point weights: p + w^2 s d).
+SFFD_HD void sample_point(const PlanView& pv, const float* D, int s, float* F, float* J) {
+  if (pv.components == 4)
+    sample_point_nc<4>(pv, D, s, F, J);
+  else
+    sample_point_nc<3>(pv, D, s, F, J);
 }
 
 // sample_point with C terms an axis at compile time instead of the run-time dispatch on the
 // largest count (C at least every count and degree + 1 of the plan's pieces: the padded terms
-// are exact zeros, fma(0, d, x) = x, so the result is sample_point's). The CUDA kernels' form.
-template <int C>
+// are exact zeros, fma(0, d, x) = x, so the result is sample_point's), NC values a control
+// point (pv.components). The CUDA kernels' form.
+template <int C, int NC = 3>
 SFFD_HD void sample_point_fixed(const PlanView& pv, const float* D, int s, float* F, float* J) {
   float p[3] = {pv.sample_position[3 * s], pv.sample_position[3 * s + 1], pv.sample_position[3 * s + 2]};
   int idx[3][C];
-  float w[3][C], dw[3][C], value[3], grad[9];
+  float w[3][C], dw[3][C], value[NC], grad[3 * NC];
   const float* local = pv.sample_local ? pv.sample_local + 3 * (long long)s : nullptr;
   sample_weights<C>(pv, p, pv.sample_piece[s], idx, w, dw, local);
-  tensor_eval_fixed<float, float, C, C, C>(idx[0], w[0], dw[0], idx[1], w[1], dw[1], idx[2], w[2], dw[2], D,
-                                           pv.dims[1], pv.dims[2], value, grad);
-  finish_sample(pv, p, s, value, grad, F, J);
+  tensor_eval_fixed<float, float, C, C, C, NC>(idx[0], w[0], dw[0], idx[1], w[1], dw[1], idx[2], w[2], dw[2], D,
+                                               pv.dims[1], pv.dims[2], value, grad);
+  finish_sample<NC>(pv, p, s, value, grad, F, J);
 }
 
 // Moves control point c next to corner P: onto the tangent plane of the (averaged) normal at

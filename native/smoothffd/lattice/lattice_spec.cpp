@@ -30,11 +30,17 @@ void LatticeSpec::evaluate(const double p[3], const double* D, double weight, do
     count = std::max(count, pc.count);
     for (int k = 0; k < pc.count; ++k) idx[a][k] = pc.index[k];
   }
-  double value[3], grad[9], A[9];
-  tensor_eval<double, double>(idx[0], w[0], dw[0], idx[1], w[1], dw[1], idx[2], w[2], dw[2], count,
-                              D, axes[1].n_ctrl(), axes[2].n_ctrl(), value, grad);
+  double value[4], grad[12], A[9];
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) A[3 * r + c] = object_to_param[r][c];
+  if (components == 4) {
+    tensor_eval<double, double, 4>(idx[0], w[0], dw[0], idx[1], w[1], dw[1], idx[2], w[2], dw[2], count,
+                                   D, axes[1].n_ctrl(), axes[2].n_ctrl(), value, grad);
+    compose_weighted_deformation<double>(p, weight, value, grad, A, F, J);
+    return;
+  }
+  tensor_eval<double, double>(idx[0], w[0], dw[0], idx[1], w[1], dw[1], idx[2], w[2], dw[2], count,
+                              D, axes[1].n_ctrl(), axes[2].n_ctrl(), value, grad);
   compose_deformation<double>(p, weight, value, grad, A, F, J);
 }
 

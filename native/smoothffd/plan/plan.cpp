@@ -157,6 +157,8 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   for (int a = 0; a < 3; ++a)
     if (lattice.axes[a].pieces().size() > 1023)
       throw std::invalid_argument("lattice: too many knot spans on one axis (at most 1023)");
+  if (lattice.components != 3 && lattice.components != 4)
+    throw std::invalid_argument("lattice: components must be 3, or 4 with point weights");
   check_float_range(lattice);
   Plan plan;
   StageTimer timer{plan};
@@ -509,6 +511,7 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   // B-spline axis with knots at -13451.4916 + [0, 2.4e-4] lost its spans to rounding (input
   // vertices 0.76 off in a lattice 2 wide, found by fuzz_plan); from its first plane it keeps
   // them.
+  plan.components = lattice.components;
   for (int a = 0; a < 3; ++a) {
     plan.axis_offset[a] = (int)plan.pieces.size();
     plan.dims[a] = lattice.axes[a].n_ctrl();

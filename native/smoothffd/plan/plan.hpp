@@ -102,7 +102,8 @@ struct Plan {
   // --- lattice tables
   std::vector<AxisPieceF> pieces;  // the three axes' pieces, concatenated
   int axis_offset[3] = {0, 0, 0};
-  int dims[3] = {1, 1, 1};          // nu, nv, nw (control values D are nu*nv*nw x 3)
+  int dims[3] = {1, 1, 1};          // nu, nv, nw (control values D are nu*nv*nw x components)
+  int components = 3;               // LatticeSpec::components: 3, or 4 with point weights
   float param_map[12] = {};         // s = A p + b, row-major [A | b]
 
   // --- samples (sec. 5.1)

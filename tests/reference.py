@@ -173,8 +173,10 @@ def _blender_axis_stencil(q_a, frame, kind):
     return idx, w, dw
 
 
-def _blender_core(rest_points, points, interpolation, lattice_to_object, strength, p, jac):
+def _blender_core(rest_points, points, interpolation, lattice_to_object, strength, p, jac,
+                  point_weights=None):
     rest = np.asarray(rest_points, dtype=np.float64)
+    lw = None if point_weights is None else np.asarray(point_weights, dtype=np.float64)
     pts = np.asarray(points, dtype=np.float64)
     l2o = np.asarray(lattice_to_object, dtype=np.float64)
     interp = _normalize_interp(interpolation)
@@ -193,52 +195,78 @@ def _blender_core(rest_points, points, interpolation, lattice_to_object, strengt
         (iu, wu, du), (iv, wv, dv), (iw, ww, dw) = st
         acc = np.zeros(3)
         dacc_dq = np.zeros((3, 3))  # d(sum)/dq
+        sacc = 0.0                  # lattice vertex group: sum of W * point weight
+        dsacc_dq = np.zeros(3)
         for a in range(4):
             for b in range(4):
                 for c in range(4):
                     D = disp[iu[a], iv[b], iw[c]]
                     acc += wu[a] * wv[b] * ww[c] * D
+                    if lw is not None:
+                        L = lw[iu[a], iv[b], iw[c]]
+                        sacc += wu[a] * wv[b] * ww[c] * L
                     if jac:
                         dacc_dq[:, 0] += du[a] * wv[b] * ww[c] * D
                         dacc_dq[:, 1] += wu[a] * dv[b] * ww[c] * D
                         dacc_dq[:, 2] += wu[a] * wv[b] * dw[c] * D
-        out[n_] = x + strength * acc
+                        if lw is not None:
+                            dsacc_dq += np.array([du[a] * wv[b] * ww[c], wu[a] * dv[b] * ww[c],
+                                                  wu[a] * wv[b] * dw[c]]) * L
+        if lw is None:
+            out[n_] = x + strength * acc
+            if jac:
+                jout[n_] = np.eye(3) + strength * dacc_dq @ o2l[:3, :3]
+            continue
+        # BKE_lattice_deform_data_eval_co with lattice_weights: co accumulates
+        # u * latticedata and weight_blend u * lattice_weights, u carrying the factor
+        # (strength); then co = interp(co_prev, co, weight_blend).
+        co = x + strength * acc
+        weight_blend = strength * sacc
+        out[n_] = x + weight_blend * (co - x)
         if jac:
-            jout[n_] = np.eye(3) + strength * dacc_dq @ o2l[:3, :3]
+            dq_dp = o2l[:3, :3]
+            jout[n_] = np.eye(3) + strength ** 2 * (sacc * dacc_dq @ dq_dp
+                                                    + np.outer(acc, dsacc_dq @ dq_dp))
     if single:
         return (out[0], jout[0]) if jac else out[0]
     return (out, jout) if jac else out
 
 
-def blender_lattice_reference(rest_points, points, interpolation, lattice_to_object, strength, p):
+def blender_lattice_reference(rest_points, points, interpolation, lattice_to_object, strength, p,
+                              point_weights=None):
     """p' for points p (3,) or (N, 3) in the deformed object's local space.
 
     ``lattice_to_object`` is M^-1 L; q = inverse(lattice_to_object) p.  Arrays are
     (nu, nv, nw, 3) indexed [u, v, w]; ``interpolation`` a type name or a triple of them.
+    ``point_weights``: None or (nu, nv, nw), the lattice's vertex group (Blender's
+    lattice_deform.cc: weight_blend, then interp_v3_v3v3).
     """
     return _blender_core(rest_points, points, interpolation, lattice_to_object, strength, p,
-                         jac=False)
+                         jac=False, point_weights=point_weights)
 
 
 def blender_lattice_jacobian_reference(rest_points, points, interpolation, lattice_to_object,
-                                       strength, p):
-    """(p', J) with the analytic Jacobian J = I + strength * dD/dq * dq/dp."""
+                                       strength, p, point_weights=None):
+    """(p', J) with the analytic Jacobian J = I + strength * dD/dq * dq/dp (with point weights
+    the product rule on strength^2 s(q) D(q))."""
     return _blender_core(rest_points, points, interpolation, lattice_to_object, strength, p,
-                         jac=True)
+                         jac=True, point_weights=point_weights)
 
 
 class BlenderReference:
     """Object wrapper: ``evaluate(p) -> (positions, jacobians)`` like the core's lattices."""
 
     def __init__(self, rest_points, points, interpolation=("BSPLINE",) * 3,
-                 lattice_to_object=np.eye(4), strength=1.0):
+                 lattice_to_object=np.eye(4), strength=1.0, point_weights=None):
         self.args = (rest_points, points, interpolation, lattice_to_object, strength)
+        self.point_weights = point_weights
 
     def __call__(self, p):
-        return blender_lattice_reference(*self.args, p)
+        return blender_lattice_reference(*self.args, p, point_weights=self.point_weights)
 
     def evaluate(self, p):
-        pos, jac = blender_lattice_jacobian_reference(*self.args, np.atleast_2d(p))
+        pos, jac = blender_lattice_jacobian_reference(*self.args, np.atleast_2d(p),
+                                                      point_weights=self.point_weights)
         return pos, jac
 
 

@@ -28,7 +28,7 @@ _COMMON = {"format", "version", "kind", "shape", "name", "comment"}
 _KEYS = {
     "bspline": _COMMON | {"degree", "knots", "box_min", "box_max", "control_points"},
     "blender": _COMMON | {"rest_points", "points", "interpolation", "lattice_to_object",
-                          "strength"},
+                          "strength", "point_weights"},
 }
 
 
@@ -185,8 +185,18 @@ def parse_lattice(doc, source=None):
     strength = doc.get("strength", 1.0)
     if not _is_number(strength):
         raise err("strength", f"expected a finite number, got {reprlib.repr(strength)}")
+    weights = doc.get("point_weights")
+    if weights is not None:
+        n = shape[0] * shape[1] * shape[2]
+        if not isinstance(weights, list) or len(weights) != n:
+            raise err("point_weights", f"expected null or a list of {n} numbers (one a point, "
+                                       f"in the order of 'points'), got {reprlib.repr(weights)}")
+        for i, v in enumerate(weights):
+            if not _is_number(v):
+                raise err(f"point_weights[{i}]", f"expected a finite number, got {reprlib.repr(v)}")
+        weights = np.array(weights, dtype=np.float64).reshape(shape)
     return kind, dict(rest_points=rest, points=points, interpolation=tuple(interp),
-                      lattice_to_object=m, strength=float(strength))
+                      lattice_to_object=m, strength=float(strength), point_weights=weights)
 
 
 def build_lattice(kind, kwargs):
@@ -221,7 +231,7 @@ def _rows(a):
 def lattice_to_dict(lattice, name=None):
     """A JSON-ready dict for a lattice, read through its public attributes:
     control_points, degree, knots, box_min, box_max (B-spline) or rest_points, points,
-    interpolation, lattice_to_object, strength (Blender)."""
+    interpolation, lattice_to_object, strength, point_weights (Blender)."""
     if hasattr(lattice, "lattice_to_object"):
         pts = np.asarray(lattice.points, dtype=np.float64)
         doc = {"format": FORMAT, "version": VERSION, "kind": "blender",
@@ -230,6 +240,9 @@ def lattice_to_dict(lattice, name=None):
                "lattice_to_object": np.asarray(lattice.lattice_to_object, float).tolist(),
                "strength": float(lattice.strength),
                "rest_points": _rows(lattice.rest_points), "points": _rows(pts)}
+        weights = getattr(lattice, "point_weights", None)
+        if weights is not None:
+            doc["point_weights"] = [float(v) for v in np.asarray(weights, dtype=np.float64).ravel()]
     elif hasattr(lattice, "control_points"):
         cp = np.asarray(lattice.control_points, dtype=np.float64)
         knots = getattr(lattice, "knots", None)

@@ -114,11 +114,13 @@ def bspline(rng, degree=(2, 2, 2), shape=(5, 5, 5), amount=0.08, box=BOX):
     return lat.with_control_points(cp)
 
 
-def blender(rng, interp=("BSPLINE",) * 3, shape=(4, 5, 3), amount=0.08):
+def blender(rng, interp=("BSPLINE",) * 3, shape=(4, 5, 3), amount=0.08, weighted=False, strength=1.0):
+    """weighted: point weights in [0, 1] (the lattice's vertex group), some points at 0."""
     axes = [np.linspace(BOX[0][a], BOX[1][a], shape[a]) for a in range(3)]
     rest = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
     pts = rest + amount * SIZE * rng.standard_normal(rest.shape)
-    return smoothffd.BlenderLattice(rest, pts, interpolation=interp)
+    lw = np.where(rng.uniform(size=shape) < 0.2, 0.0, rng.uniform(0, 1, shape)) if weighted else None
+    return smoothffd.BlenderLattice(rest, pts, interpolation=interp, strength=strength, point_weights=lw)
 
 
 # ----------------------------------------------------------------------------- comparison
@@ -133,7 +135,7 @@ def check(mesh, lat, level, path, shared_memory_limit=0):
     if path == "cublas":
         need_cublas()
     plan = smoothffd.Deformer(mesh, lat, level=level, device="cpu").plan
-    vals = np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32)
+    vals = np.ascontiguousarray(lat._core_values(), dtype=np.float32)  # (n, 4) with point weights
     pc, nc, _ = _core.CpuEvaluator(plan).evaluate(vals)
     ev = _core.CudaEvaluator(plan, path, shared_memory_limit=shared_memory_limit)
     assert ev.path == path
@@ -182,6 +184,44 @@ def test_bspline_degrees(mesh, degree, path):
 def test_blender_lattices(mesh, interp, path):
     rng = np.random.default_rng(7 + len(mesh) + len(interp[0]))
     check(MESHES[mesh](), blender(rng, interp), level=4, path=path)
+
+
+@pytest.mark.parametrize("path", PATHS)
+@pytest.mark.parametrize("mesh", sorted(MESHES))
+@pytest.mark.parametrize("interp", [("BSPLINE",) * 3, ("LINEAR",) * 3, ("CATMULL_ROM", "CARDINAL", "BSPLINE")])
+def test_blender_point_weights(mesh, interp, path):
+    """A lattice with a vertex group (point weights: 4 values a control point). The inline
+    kernel's tables hold 3, so both paths run the reference kernels (sample_point_fixed with
+    the weights, stages.hpp) and match the CPU."""
+    rng = np.random.default_rng(19 + len(mesh) + len(interp[0]))
+    lat = blender(rng, interp, weighted=True, strength=0.7)
+    check(MESHES[mesh](), lat, level=4, path=path)
+    plan = smoothffd.Deformer(MESHES[mesh](), lat, level=4, device="cpu").plan
+    assert plan.components == 4
+    assert _core.CudaEvaluator(plan, path).kernel == "cublas"
+
+
+def test_point_weights_deformer_cuda_matches_cpu():
+    """Deformer on CUDA with point weights, a mesh vertex group and strength (the factor enters
+    squared), weights changed per frame: the CPU's result every frame, one plan."""
+    rng = np.random.default_rng(23)
+    m = icosphere(2)
+    mesh = smoothffd.Mesh(m.positions, (m.corner_vertices, m.face_offsets), corner_normals=m.corner_normals,
+                          vertex_weights=rng.uniform(0.3, 1.0, len(m.positions)))
+    lat = blender(rng, ("CATMULL_ROM",) * 3, weighted=True, strength=0.8)
+    dg = smoothffd.Deformer(mesh, lat, level=6, device="cuda")
+    dc = smoothffd.Deformer(mesh, lat, level=6, device="cpu")
+    plan = dg.plan
+    for _ in range(3):
+        rg, rc = dg.deform(lat), dc.deform(lat)
+        assert rg.stats["device"] == "cuda"
+        assert np.abs(rg.positions - rc.positions).max() <= 1e-5 * SIZE
+        assert angles(rg.corner_normals, rc.corner_normals).max() <= 1e-4
+        cg, cc = dg.deform(lat, layout="compact"), dc.deform(lat, layout="compact")
+        assert np.abs(cg.positions - cc.positions).max() <= 1e-5 * SIZE
+        lat = lat.with_points(lat.points + 0.01 * rng.standard_normal(lat.points.shape),
+                              point_weights=rng.uniform(0, 1, lat.point_weights.shape))
+    assert dg.plan is plan
 
 
 @pytest.mark.parametrize("path", PATHS)

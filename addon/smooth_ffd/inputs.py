@@ -23,6 +23,12 @@ def lattice_grid(flat, shape):
     return np.asarray(flat, dtype=np.float64).reshape(nw, nv, nu, 3).transpose(2, 1, 0, 3)
 
 
+def lattice_weight_grid(flat, shape):
+    """Blender's flat u-fastest point weights (nu*nv*nw,) -> (nu, nv, nw) for the core."""
+    nu, nv, nw = shape
+    return np.asarray(flat, dtype=np.float64).reshape(nw, nv, nu).transpose(2, 1, 0).copy()
+
+
 def lattice_to_object(object_matrix, lattice_matrix):
     """M^-1 L: lattice-local coordinates -> deformed object's local coordinates."""
     m = np.asarray(object_matrix, dtype=np.float64)

@@ -5,7 +5,8 @@ from . import inputs
 
 
 def read_lattice(lattice_obj, depsgraph):
-    """(rest (nu,nv,nw,3), points (nu,nv,nw,3), interpolation, shape, key) in lattice space.
+    """(rest (nu,nv,nw,3), points (nu,nv,nw,3), interpolation, shape, key, weights) in
+    lattice space; weights: the lattice's vertex group (lattice_weights), or None.
 
     Deformed points come from the *evaluated* lattice, so shape keys, hooks, lattice
     modifiers and animation count, as they do for Blender's Lattice modifier.
@@ -25,8 +26,58 @@ def read_lattice(lattice_obj, depsgraph):
     rest = _rest_points(data, shape)
     interp = inputs.interpolation_names((data.interpolation_type_u, data.interpolation_type_v,
                                         data.interpolation_type_w))
-    key = inputs.digest(rest, pts, interp, shape)
-    return inputs.lattice_grid(rest, shape), inputs.lattice_grid(pts, shape), interp, shape, key
+    weights = lattice_weights(lattice_obj, count)
+    key = inputs.digest(rest, pts, interp, shape, weights)
+    grid = None if weights is None else inputs.lattice_weight_grid(weights, shape)
+    return (inputs.lattice_grid(rest, shape), inputs.lattice_grid(pts, shape), interp, shape, key,
+            grid)
+
+
+def lattice_weights(lattice_obj, count):
+    """The lattice's vertex group (Lattice.vertex_group), which Blender's Lattice modifier
+    blends each vertex by (docs/algorithm.md): (count,) float64 weights in Blender's point
+    order, 0 for a point not in the group; None where the modifier ignores it: no group
+    named, no group of that name, or no point in any group (Blender then has no weight layer,
+    lt->dvert is null, and deforms fully; a layer emptied again by hand reads the same here).
+
+    Read from the original lattice: evaluation changes no weights. In edit mode the weights
+    being edited live in the edit lattice, which LatticePoint.groups does not read (it takes
+    its index from the edit lattice's points into the object-mode layer); VertexGroup.weight
+    does (and raises for a point not in the group)."""
+    data = lattice_obj.data
+    name = data.vertex_group
+    group = lattice_obj.vertex_groups.get(name) if name else None
+    if group is None:
+        return None
+    w = np.zeros(count, dtype=np.float64)
+    if data.is_editmode:
+        member = False
+        for i in range(count):
+            try:
+                w[i] = group.weight(i)
+                member = True
+            except RuntimeError:   # not in the group
+                pass
+        if not member:   # is there a weight layer at all? any point in any other group
+            member = any(_edit_member(g, count) for g in lattice_obj.vertex_groups if g != group)
+        return w if member else None
+    index, member = group.index, False
+    for i, p in enumerate(data.points):
+        for g in p.groups:
+            member = True
+            if g.group == index:
+                w[i] = g.weight
+    return w if member else None
+
+
+def _edit_member(group, count):
+    for i in range(count):
+        try:
+            group.weight(i)
+            return True
+        except RuntimeError:
+            pass
+    return False
 
 
 _rest_cache = {}   # lattice name -> (shape, rest): edit mode hides the rest positions

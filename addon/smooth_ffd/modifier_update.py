@@ -296,10 +296,13 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
             if st.status_base is not None:
                 _set_ok_status(obj, mod, st, st.status_base, above, frames, frame, scene=scene)
             return False
-        rest, pts, interp = lattice_data
+        rest, pts, interp, weights = lattice_data
         t0 = time.perf_counter()
+        # weights: the lattice's vertex group; a per-frame value like the points (adding or
+        # removing it changes the lattice's structure key, so that replans).
         lattice = core.smoothffd().BlenderLattice(rest, pts, interpolation=interp,
-                                                  lattice_to_object=l2o, strength=settings.strength)
+                                                  lattice_to_object=l2o, strength=settings.strength,
+                                                  point_weights=weights)
         plan_key = (source.key, lattice.structure_key(), level, backend)
         if st.deformer is None or st.plan_key != plan_key:
             st.deformer = st.result = None
@@ -389,12 +392,12 @@ def _inputs(obj, mod, st, depsgraph, render, mesh_changed):
     """Everything one update uses, from the evaluated depsgraph, and its fingerprint."""
     settings = Settings(mod)
     level, backend, exact = _level_backend_exact(settings, render)
-    rest, pts, interp, shape, lattice_key = latticeio.read_lattice(settings.lattice, depsgraph)
+    rest, pts, interp, shape, lattice_key, weights = latticeio.read_lattice(settings.lattice, depsgraph)
     l2o = inputs.lattice_to_object(latticeio.world_matrix(obj, depsgraph),
                                   latticeio.world_matrix(settings.lattice, depsgraph))
     source = _source(obj, settings, st, mesh_changed)
     key = _key(lattice_key, l2o, settings, source, level, backend, exact)
-    return settings, level, backend, exact, (rest, pts, interp), l2o, source, key
+    return settings, level, backend, exact, (rest, pts, interp, weights), l2o, source, key
 
 
 def _early_inputs(obj, mod, st):
@@ -423,10 +426,10 @@ def _early_inputs(obj, mod, st):
     if st.source_stamp != _source_stamp(obj, group_index, settings):
         return None
     level, backend, exact = _level_backend_exact(settings, False)
-    rest, pts, interp, shape, lattice_key = latticeio.read_lattice(lat, None)
+    rest, pts, interp, shape, lattice_key, weights = latticeio.read_lattice(lat, None)
     l2o = inputs.lattice_to_object(obj_matrix, lat_matrix)
     key = _key(lattice_key, l2o, settings, st.source, level, backend, exact)
-    return settings, level, backend, exact, (rest, pts, interp), l2o, st.source, key
+    return settings, level, backend, exact, (rest, pts, interp, weights), l2o, st.source, key
 
 
 _last_timing = {}

@@ -37,7 +37,8 @@ TOKENS = [b"null", b"true", b"false", b"[]", b"{}", b"[[", b"]]", b"0", b"-1", b
           b"NaN", b"Infinity", b"-Infinity", b"1e-320", b"99999999999999999999", b"0.5", b'""',
           b'"bspline"', b'"blender"', b'"shape"', b'"knots"', b'"degree"', b'"points"',
           b'"rest_points"', b'"control_points"', b'"strength"', b'"interpolation"',
-          b'"lattice_to_object"', b'"box_min"', b'"box_max"', b'"version"', b'"format"', b",",
+          b'"lattice_to_object"', b'"point_weights"', b'"box_min"', b'"box_max"', b'"version"',
+          b'"format"', b",",
           b":", b"\\u0000", b"\xff", b"\xef\xbb\xbf", b" ", b"\n", "é".encode()]
 NUMBERS = [0, -1, 1, 2, 3, 5, 6, 64, 65, 1023, 1024, 100000, 2**31, 2**63, 10**400, -10**400,
            0.5, -0.0, 1e-300, 1e300, -1e300, 1e308, -1e308, 1.7e308, 1e37, 3.4e38, float("nan"),
@@ -105,7 +106,10 @@ class Target:
         if isinstance(lat, self.kinds[1]):  # lattice space -> object space
             m = lat.lattice_to_object
             rest = rest @ m[:3, :3].T + m[:3, 3]
-        if np.abs(rest).max(initial=0) < 1e150 and np.abs(values).max(initial=0) < 1e150:
+        weights = getattr(lat, "point_weights", None)
+        weights = np.zeros(0) if weights is None else weights
+        if (np.abs(rest).max(initial=0) < 1e150 and np.abs(values).max(initial=0) < 1e150
+                and np.abs(weights).max(initial=0) < 1e150):
             with np.errstate(all="ignore"):
                 F, _ = lat.evaluate(rest)
             assert np.isfinite(F).all(), "non-finite positions at the rest points"
@@ -113,6 +117,8 @@ class Target:
         again = self.lj.build_lattice(*self.lj.parse_lattice(doc, "round trip"))
         assert again.structure_key() == lat.structure_key(), "round trip changed the structure"
         assert np.array_equal(again.control_values(), values), "round trip changed the values"
+        if weights.size:
+            assert np.array_equal(again.point_weights, weights), "round trip changed the weights"
 
 
 # ---------------------------------------------------------------------------- mutations

@@ -236,6 +236,7 @@ class BlenderLattice(_Lattice):
         self.strength = finite_float(strength, "strength")
         self.rest_points, self.points = rest, pts
         self.point_weights = None if point_weights is None else self._weights(point_weights)
+        self._lw = None if point_weights is None else self._scaled_weights(self.point_weights)
         self.interpolation = interp
         self.lattice_to_object = m
         counts = rest.shape[:3]
@@ -266,15 +267,17 @@ class BlenderLattice(_Lattice):
     def _weights(self, point_weights):
         return float_array(point_weights, "point_weights", shape=self.points.shape[:3])
 
+    def _scaled_weights(self, weights):
+        # The core's 4th value: the point's weight times the strength (Blender's factor enters
+        # the weight sum as it does the displacement sum: compose_weighted_deformation).
+        return _finite("point_weights", "strength * point_weights",
+                       lambda: self.strength * weights.reshape(-1, 1))
+
     def _core_values(self):
         values = self._values.reshape(-1, 3)
         if self.point_weights is None:
             return values
-        # The 4th value: the point's weight times the strength (Blender's factor enters the
-        # weight sum as it does the displacement sum: compose_weighted_deformation).
-        lw = _finite("point_weights", "strength * point_weights",
-                     lambda: self.strength * self.point_weights.reshape(-1, 1))
-        return np.concatenate([values, lw], axis=1)
+        return np.concatenate([values, self._lw], axis=1)
 
     def with_points(self, points, point_weights=None):
         """Same structure (rest points, interpolation, matrix), new deformed points.
@@ -291,7 +294,7 @@ class BlenderLattice(_Lattice):
         lat = copy.copy(self)
         lat.points = pts
         if weights is not None:
-            lat.point_weights = weights
+            lat.point_weights, lat._lw = weights, self._scaled_weights(weights)
         m = self.lattice_to_object
         lat._values = _finite("points", "strength * lattice_to_object (points - rest_points)",
                               lambda: self.strength * np.einsum("rc,uvwc->uvwr", m[:3, :3], pts - self.rest_points))

@@ -65,7 +65,7 @@ def run_mesh(kind, level):
     poly_of_loop = np.repeat(np.arange(len(src.polygons)),
                              [len(p.vertices) for p in src.polygons])
     # Expected: cof(J) n at each original vertex, J of the whole map in object space.
-    rest, pts, interp, _shape, _key = latticeio.read_lattice(lat, None)
+    rest, pts, interp, _shape, _key, _weights = latticeio.read_lattice(lat, None)
     l2o = inputs.lattice_to_object(np.array(obj.matrix_world), np.array(lat.matrix_world))
     sf = T.core_module()
     lattice = sf.BlenderLattice(rest, pts, interpolation=interp, lattice_to_object=l2o)

@@ -12,6 +12,17 @@ def test_lattice_grid_u_fastest(inputs):
     assert tuple(g[1, 2, 3]) == (1, 2, 3)
 
 
+def test_lattice_weight_grid_u_fastest(inputs):
+    """Point weights in Blender's order land where lattice_grid puts the points."""
+    nu, nv, nw = 2, 3, 4
+    flat = np.array([100 * u + 10 * v + w for w in range(nw) for v in range(nv) for u in range(nu)], float)
+    g = inputs.lattice_weight_grid(flat, (nu, nv, nw))
+    assert g.shape == (nu, nv, nw) and g.flags.c_contiguous
+    assert g[1, 2, 3] == 123 and g[0, 1, 2] == 12
+    pts = np.stack([flat] * 3, axis=1)
+    assert np.array_equal(inputs.lattice_grid(pts, (nu, nv, nw))[..., 0], g)
+
+
 def test_lattice_to_object(inputs):
     m = np.diag([2.0, 2.0, 2.0, 1.0]); m[:3, 3] = (1, 0, 0)
     lat = np.eye(4); lat[:3, 3] = (3, 0, 0)

@@ -294,6 +294,21 @@ TEST(DeviceTables, ModeFollowsTheBudgetAndThePlan) {
   }());
 }
 
+// A lattice with point weights (4 control values a point): no inline kernel (its tables hold
+// 3), the reference kernels serve it; the tables the reference path uses still build.
+TEST(DeviceTables, PointWeightsRunTheReferenceKernels) {
+  LatticeSpec s = blender_box(BlenderInterp::BSpline, 4, -0.2, 1.2);
+  s.components = 4;
+  auto p = plan_of(octahedron(), s, 3);
+  EXPECT_EQ(p->components, 4);
+  DeviceTables t = tables_of(*p);
+  EXPECT_NE(t.no_inline.find("point weights"), std::string::npos) << t.no_inline;
+  EXPECT_EQ(choose_inline_mode(t, size_t(1) << 30), kInlineNone);
+  EXPECT_EQ((int)t.render.size(), p->patches);
+  s.components = 5;
+  EXPECT_THROW(plan_of(octahedron(), s, 3), std::invalid_argument);
+}
+
 // Random meshes and lattices: the tables build (or say why not) and their sizes agree.
 TEST(DeviceTables, RandomPlans) {
   std::mt19937 rng(20);

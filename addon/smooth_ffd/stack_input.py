@@ -362,6 +362,8 @@ def source(obj, mod, settings, st, stack, depsgraph, changed, frame_change, can_
     evaluated object; CHAIN: from the Smooth FFD right above), read again only when it may
     have changed; the modifier's Stack Object follows it."""
     from . import meshio, modifier_update
+    if nodegroup.layout(mod.node_group) not in nodegroup.STACK_LAYOUTS:
+        nodegroup.migrate(mod)   # a group of an older add-on: no Stack Object input yet
     fp = settings_fingerprint(obj, stack)
     setting = (settings.vertex_group, settings.invert)
     same = st.source is not None and st.source_kind == stack.kind and st.stack_fp == fp \
@@ -383,7 +385,7 @@ def source(obj, mod, settings, st, stack, depsgraph, changed, frame_change, can_
     src = meshio.SourceMesh(mesh, group_index, settings.invert, names)
     counters["reads"] += 1
     src.keep_normals_of(st.source)
-    if stack.kind == EVALUATED:
+    if stack.kind == EVALUATED and nodegroup.layout(mod.node_group) in nodegroup.STACK_LAYOUTS:
         so = stack_object(obj, mod, ro)
         record(so, src.positions)
         set_stack_object(obj, mod, so)

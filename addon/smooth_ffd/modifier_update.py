@@ -15,6 +15,7 @@ UID_KEY = "smooth_ffd_uid"              # result object -> its modifier's in-mem
 TOPOLOGY_KEY = "smooth_ffd_topology"    # result mesh -> plan that built its topology
 NORMALS_KEY = "smooth_ffd_normals"      # result mesh -> "exact" or "fast"
 EXTRAS_KEY = "smooth_ffd_extras"        # result mesh -> topology + carried UV maps / groups
+OUTPUT_KEY = "smooth_ffd_output"        # result mesh -> its triangles, faces, sharp edges
 
 
 class _State:
@@ -28,6 +29,7 @@ class _State:
         self.plan_key = None
         self.result = None        # the last core Result: its arrays are reused (out=)
         self.scratch = (None, {})  # (plan_key, meshio.write_normals' per-plan facts, buffers)
+        self.output = (None, None)  # (plan_key, digest of that plan's output topology)
         self.outs = {}            # layout -> the last result in it (out=; LAYOUT may change)
         self.status_base = None   # last "OK ..." status as (head, tail) (_set_ok_status)
         self.note = None          # the stack warning, as last reported (stack_input.Stack.note)
@@ -302,18 +304,18 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
             return False
         st = _state(ro)
         stack = stack_input.Stack(obj, mod, render and not early, own=own_input)
-        gathered = _early_inputs(obj, mod, st, stack) if early else \
+        # Vertex groups on the result are for the modifiers below and Apply; with the stack's
+        # geometry as input only Smooth FFD modifiers are below, so they are carried where one
+        # is (it reads them), for render, Apply and Bake, and always without modifiers above.
+        groups = not stack.reads_stack or bool(stack.sffd_below) or render or force
+        gathered = _early_inputs(obj, mod, st, stack, groups) if early else \
             _inputs(obj, mod, st, depsgraph, render, mesh_changed, stack, changed, frame_change,
-                    can_evaluate)
+                    can_evaluate, groups)
         if gathered is None:
             return False
         settings, level, backend, exact, lattice_data, l2o, source, key = gathered
         st.lattice_gone = None
         st.deferred = False
-        # Vertex groups on the result are for the modifiers below and Apply; with the stack's
-        # geometry as input only Smooth FFD modifiers are below, so they are carried where one
-        # is (it reads them), for render, Apply and Bake, and always without modifiers above.
-        groups = not stack.reads_stack or bool(stack.sffd_below) or render or force
         key = inputs.digest(key, groups)
         frame = scene_frame(scene, depsgraph)
         frames = result_frames(obj, settings.lattice, frame, stack)
@@ -344,6 +346,11 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
             lattice, out=st.outs.get(layout), normals=exact, layout=layout)
         deform_calls["normals" if exact else "positions_only"] += 1
         t1 = time.perf_counter()
+        if st.output[0] is not st.plan_key:
+            # A new plan often keeps the output topology (an armature's next pose: the same
+            # knot-plane cuts): then only positions and what lies on the input move.
+            st.output = (st.plan_key, inputs.digest(res.triangles, res.face_index, res.sharp_edges,
+                                                 len(res.positions), source.material_index))
         times = _write_result(obj, ro, res, source, inputs.digest(plan_key), exact, st, groups)
         normals = times.pop("normals")
         t2 = time.perf_counter()
@@ -359,7 +366,7 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
             "early": early, **times}
         counters["computed"] += 1
         counters["early" if early else "post"] += 1
-        stack_input.wrote(obj)
+        stack_input.wrote(obj, mod)
         return True
     except stack_input.Deferred:
         # The stack's geometry is read on the next evaluation (stack_input.defer).
@@ -419,7 +426,7 @@ def _key(lattice_key, l2o, settings, source, level, backend, exact):
 
 
 def _inputs(obj, mod, st, depsgraph, render, mesh_changed, stack, changed, frame_change,
-            can_evaluate):
+            can_evaluate, groups):
     """Everything one update uses, from the evaluated depsgraph, and its fingerprint."""
     settings = Settings(mod)
     level, backend, exact = _level_backend_exact(settings, render)
@@ -428,7 +435,7 @@ def _inputs(obj, mod, st, depsgraph, render, mesh_changed, stack, changed, frame
                                   latticeio.world_matrix(settings.lattice, depsgraph))
     if stack.reads_stack:
         source = stack_input.source(obj, mod, settings, st, stack, depsgraph, changed,
-                                    frame_change, can_evaluate)
+                                    frame_change, can_evaluate, groups)
     else:
         stack_input.set_stack_object(obj, mod, None)   # no input check for the own mesh
         source = _source(obj, settings, st, mesh_changed)
@@ -436,7 +443,7 @@ def _inputs(obj, mod, st, depsgraph, render, mesh_changed, stack, changed, frame
     return settings, level, backend, exact, (rest, pts, interp), l2o, source, key
 
 
-def _early_inputs(obj, mod, st, stack):
+def _early_inputs(obj, mod, st, stack, groups):
     """The inputs read before Blender evaluates an edit (depsgraph_update_pre), or None.
 
     On 3.4 a lattice edit is evaluated twice: the Smooth FFD modifier depends on its Lattice
@@ -471,7 +478,9 @@ def _early_inputs(obj, mod, st, stack):
         group_index = _group_index(obj, settings)
         if st.source_stamp != _source_stamp(obj, group_index, settings):
             return None
-    elif (settings.vertex_group, settings.invert) != st.source_setting:
+    elif st.source_setting is None or \
+            (settings.vertex_group, settings.invert) != st.source_setting[:2] or \
+            (groups and not st.source_setting[2]):
         return None
     level, backend, exact = _level_backend_exact(settings, False)
     rest, pts, interp, shape, lattice_key = latticeio.read_lattice(lat, None)
@@ -591,15 +600,20 @@ def _write_result(obj, ro, res, source, topology_token, exact, st, groups=True):
     mesh = ro.data
     t0 = time.perf_counter()
     mode = "exact" if exact else "fast"
-    same = (mesh.get(TOPOLOGY_KEY) == topology_token and len(mesh.vertices) == len(res.positions)
+    same = (mesh.get(OUTPUT_KEY) == st.output[1] and mesh.get(TOPOLOGY_KEY) is not None
+            and len(mesh.vertices) == len(res.positions)
             and len(mesh.polygons) == len(res.triangles))
     # Going back from exact to fast on 3.4-4.4 needs the custom-normal layer gone: rebuild.
     rebuild = not same or (mesh.get(NORMALS_KEY) == "exact" and mode == "fast")
     if rebuild:
         meshio.write_topology(mesh, res, source, _materials(obj))
-        mesh[TOPOLOGY_KEY] = topology_token
+        mesh[OUTPUT_KEY] = st.output[1]
     else:
         meshio.write_positions(mesh, res)
+        if mesh.get(TOPOLOGY_KEY) != topology_token:
+            # Another plan with the same topology: the points on the input moved with it.
+            meshio.write_rest_positions(mesh, res)
+    mesh[TOPOLOGY_KEY] = topology_token
     # UV maps and vertex groups: with a new topology, or when only they changed.
     extras_token = inputs.digest(topology_token, source.extras_key, groups)
     carry_ms, carry_calls = 0.0, 0

@@ -225,7 +225,7 @@ class Deferred(Exception):
     """The stack's geometry is read on the next evaluation (defer)."""
 
 
-_wrote = set()   # objects (as_pointer) a modifier wrote a result for in this handler call
+_wrote = set()   # (object as_pointer, modifier name) that wrote a result in this round
 
 
 def begin_pass():
@@ -233,8 +233,8 @@ def begin_pass():
     _wrote.clear()
 
 
-def wrote(obj):
-    _wrote.add(obj.as_pointer())
+def wrote(obj, mod):
+    _wrote.add((obj.as_pointer(), mod.name))
 
 
 def mesh_fingerprint(mesh):
@@ -357,15 +357,18 @@ def force_passthrough(obj, mods, depsgraph):
         depsgraph.update()
 
 
-def source(obj, mod, settings, st, stack, depsgraph, changed, frame_change, can_evaluate):
+def source(obj, mod, settings, st, stack, depsgraph, changed, frame_change, can_evaluate,
+           groups=True):
     """The stack's geometry at mod's position as a meshio.SourceMesh (EVALUATED: from the
     evaluated object; CHAIN: from the Smooth FFD right above), read again only when it may
-    have changed; the modifier's Stack Object follows it."""
+    have changed; the modifier's Stack Object follows it. groups: read every vertex group
+    (to carry them; a Python loop over the vertices), else only the Vertex Group setting's."""
     from . import meshio, modifier_update
     if nodegroup.layout(mod.node_group) not in nodegroup.STACK_LAYOUTS:
         nodegroup.migrate(mod)   # a group of an older add-on: no Stack Object input yet
     fp = settings_fingerprint(obj, stack)
-    setting = (settings.vertex_group, settings.invert)
+    groups = groups or bool(settings.vertex_group)
+    setting = (settings.vertex_group, settings.invert, groups)
     same = st.source is not None and st.source_kind == stack.kind and st.stack_fp == fp \
         and st.source_setting == setting
     ro = modifier_update.result_object(obj, mod, create=False)
@@ -382,7 +385,7 @@ def source(obj, mod, settings, st, stack, depsgraph, changed, frame_change, can_
             return st.source
         names, token = [g.name for g in obj.vertex_groups], None
     group_index = names.index(settings.vertex_group) if settings.vertex_group in names else None
-    src = meshio.SourceMesh(mesh, group_index, settings.invert, names)
+    src = meshio.SourceMesh(mesh, group_index, settings.invert, names if groups else ())
     counters["reads"] += 1
     src.keep_normals_of(st.source)
     if stack.kind == EVALUATED and nodegroup.layout(mod.node_group) in nodegroup.STACK_LAYOUTS:
@@ -433,7 +436,8 @@ def _evaluated_input(obj, mod, ro, st, stack, depsgraph, changed, frame_change,
     mods = [mod] + stack.sffd_below
     results = [r.data for r in (modifier_update.result_object(obj, m, create=False)
                                 for m in mods) if r is not None]
-    stale = obj.as_pointer() in _wrote   # a Smooth FFD above wrote since the evaluation
+    # A Smooth FFD above wrote since the evaluation: the stack here is not what was evaluated.
+    stale = any((obj.as_pointer(), m.name) in _wrote for m in stack.above)
     mesh = obj.evaluated_get(depsgraph).data
     if not stale and not shows_result(mesh, results):
         return mesh, mesh_fingerprint(obj.data)     # the input, passed through
@@ -442,7 +446,8 @@ def _evaluated_input(obj, mod, ro, st, stack, depsgraph, changed, frame_change,
     if not can_evaluate:
         defer(obj, mods)
     force_passthrough(obj, mods, depsgraph)
-    _wrote.discard(obj.as_pointer())
+    for m in stack.above:
+        _wrote.discard((obj.as_pointer(), m.name))
     mesh = obj.evaluated_get(depsgraph).data
     if shows_result(mesh, results):
         raise inp.SmoothFFDError("the stack's geometry at this modifier could not be read "

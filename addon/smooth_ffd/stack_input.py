@@ -3,30 +3,35 @@ Lattice modifier at the same position would deform, when modifiers or shape keys
 
 Python cannot read a Geometry Nodes modifier's input, so the add-on reads it where Blender
 already shows it. The node group passes its input through unchanged whenever it has no
-result for the frame evaluated (nodegroup): after such an evaluation, with nothing but Smooth
-FFD modifiers (passing through too) below it, the evaluated object *is* the stack's geometry
-at this position, with its split normals, UV maps, vertex groups and material indices. So:
+result for the frame evaluated, or when its input lacks the vertices of the Stack Object
+(nodegroup: a hidden mesh object holding the positions of the input the result was
+computed from). After such an evaluation, with nothing but Smooth FFD modifiers (passing
+through too) below it, the evaluated object *is* the stack's geometry at this position, with
+its split normals, UV maps, vertex groups and material indices, and the handler of that
+evaluation reads it (source). So:
 
-- playback: a result whose inputs change with time belongs to its frame only
+- playback: a moving input (a pose, animated shape keys) differs from the Stack Object, and
+  a result whose inputs change with time belongs to its frame only
   (modifier_update.result_frames), so the first evaluation of a new frame passes the input
-  through; the frame_change_post handler reads it there, computes, and Blender's second
-  evaluation of that frame (the one it runs for any handler that changed data) shows the
-  result. The modifiers above are evaluated twice a frame: one more time than with
-  Blender's Lattice modifier, and no more than the add-on did before (it evaluates the object
-  twice a frame whenever the result changes);
-- an edit on the same frame (a pose, a shape key value, a modifier setting: `triggers`) finds
-  the result shown instead: the frame range of this modifier and of every Smooth FFD below it
-  is cleared and the depsgraph evaluated once more inside the handler (`force_passthrough`),
-  one more evaluation than Blender's Lattice modifier needs there too (two in all). A
-  lattice edit reads nothing: the stack's geometry is kept from the last read.
+  through; frame_change_post reads it there and computes, and Blender's second evaluation of
+  that frame (which it runs for any handler that changed data) shows the result: the
+  modifiers above are evaluated twice a frame, once more than with Blender's Lattice
+  modifier;
+- an edit on the same frame that moves vertices passes through in the evaluation the edit
+  makes, and is read there; a lattice edit reads nothing (the last reading is kept);
+- an edit the check does not see (the mesh's UV maps, materials, sharp edges; settings that
+  keep the vertices in place) finds the result shown: outside depsgraph handlers the
+  depsgraph is evaluated once more (force_passthrough); inside them that crashes Blender
+  after a relations update, so the frame ranges are cleared and the next evaluation reads it
+  (defer);
 - a Smooth FFD modifier right below another one takes that one's result mesh as its input
   (or its bake on a baked frame), converging in stack order within one handler call.
 
 Not served (the input is the object's own mesh then, and the status says so): modifiers
-other than Smooth FFD below this one, while something sits above it; renders started where
-no render depsgraph reaches the handlers (see handlers: render_pre defers such modifiers to
-the render's frame_change_post, which gets the render depsgraph).
+other than Smooth FFD below this one while something sits above it (Stack.note).
 """
+import threading
+
 import bpy
 import numpy as np
 
@@ -278,8 +283,7 @@ def stack_object(obj, mod, ro):
     from . import compat, modifier_update
     so = compat.get_modifier_input(mod, "Stack Object")
     key = modifier_update.uid(ro)
-    if so is not None and so.type == 'MESH' and so.get(STACK_KEY) == key and \
-            so != modifier_update.result_object(obj, mod, create=False):
+    if so is not None and so.type == 'MESH' and so.get(STACK_KEY) == key:
         return so
     name = f"{obj.name}.{mod.name}.stack"
     so = bpy.data.objects.new(name, bpy.data.meshes.new(name))
@@ -332,7 +336,8 @@ def defer(obj, mods):
         modifier_update.set_frames(m, "Result", nodegroup.NEVER)
     obj.update_tag()
     counters["deferred"] += 1
-    if not bpy.app.background and not bpy.app.timers.is_registered(_deferred_update):
+    if not bpy.app.background and threading.current_thread() is threading.main_thread() \
+            and not bpy.app.timers.is_registered(_deferred_update):
         bpy.app.timers.register(_deferred_update, first_interval=0.0)
     raise Deferred()
 

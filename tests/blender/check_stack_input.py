@@ -416,6 +416,83 @@ def test_render_stack():
             smooth_ffd.status(mod).startswith("OK"), f"{len(view)} vs {len(got)}")
 
 
+def test_edits_the_check_misses():
+    """An edit that moves no vertex (Mirror's UV offset: only the mirrored UVs change): the
+    group still shows the result, so the handler reads the input on the next evaluation
+    (stack_input.defer; in a window a timer runs it at once, here the timer's function is
+    called), and the UVs follow."""
+    T.clear()
+    objs = [half_character(n) for n in ("A", "B")]
+    for obj in objs:
+        m = obj.modifiers.new("Mirror", 'MIRROR')
+        m.use_clip = m.use_mirror_merge = m.use_mirror_u = True
+    a, b = objs
+    lat = C.lattice_around([a])
+    with_lattice(b, lat)
+    mod = smooth_ffd.add_smooth_ffd(a, lat, viewport_level=LEVEL)
+    T.update()
+    r0 = reads()
+    for obj in objs:
+        obj.modifiers["Mirror"].mirror_offset_u = 0.25
+    T.update()
+    r1 = reads()
+    T.check("UV-only edit above: read on the next evaluation", r1["deferred"] == r0["deferred"] + 1
+            and len(evaluated(a).vertices) == len(evaluated(b).vertices), f"{r0} -> {r1}")
+    stack_input._deferred_update()
+    ea, eb = evaluated(a), evaluated(b)
+    d_uv, n = at_source_corners(ea, eb, uvs(ea, "UVMap"), uvs(eb, "UVMap"))
+    T.check("UV-only edit above: UVs follow", d_uv <= 1e-6 and reads()["reads"] == r1["reads"] + 1,
+            f"{d_uv:.1e} over {n}, {reads()}")
+    parity("UV-only edit above: parity", a, b, lat, [mod])
+
+
+def test_check_without_addon():
+    """Without the add-on's handlers the group shows a result only for the input it was
+    computed from: a pose edit then shows the posed input, not the old result."""
+    T.clear()
+    rig, a, b = rig_pair(1)
+    rig.animation_data_clear()            # a static pose: the result holds for every frame
+    lat = C.lattice_around([a])
+    mod = smooth_ffd.add_smooth_ffd(a, lat, viewport_level=LEVEL)
+    T.update()
+    T.check("static pose: the result holds for every frame",
+            modifier_update.get_frames(mod, "Result") == modifier_update.nodegroup.ALWAYS)
+    smooth_ffd.unregister()
+    before = tuple(rig.pose.bones["arm.L"].rotation_euler)
+    try:
+        rig.pose.bones["arm.L"].rotation_euler = (0.0, 0.7, 0.0)
+        T.update()
+        got, exp = T.positions(evaluated(a)), T.positions(evaluated(b))
+        T.check("without the add-on, another pose shows the input, not the old result",
+                got.shape == exp.shape and np.abs(got - exp).max() == 0.0,
+                f"{got.shape} vs {exp.shape}")
+        rig.pose.bones["arm.L"].rotation_euler = before
+        T.update()
+        T.check("the pose it was computed for: the result again",
+                len(evaluated(a).vertices) > len(evaluated(b).vertices))
+    finally:
+        smooth_ffd.register()
+
+
+def test_apply():
+    """Apply takes the object's own mesh, as Blender's Apply of a modifier that is not first:
+    the applied mesh is the rest pose deformed, the Armature above stays."""
+    T.clear()
+    rig, a, b = rig_pair(1)
+    b.modifiers.remove(b.modifiers["Armature"])
+    lat = C.lattice_around([a])
+    with_lattice(b, lat)
+    mod = smooth_ffd.add_smooth_ffd(a, lat, viewport_level=LEVEL, render_level=LEVEL)
+    bpy.context.scene.frame_set(3)
+    smooth_ffd.apply_smooth_ffd(a, mod)
+    got, exp = T.positions(a.data), T.positions(evaluated(b))
+    err = float(np.abs(got[:len(exp)] - exp).max()) / T.lattice_size(a, lat)
+    T.check("apply with a modifier above: the own mesh, the Armature kept",
+            err <= TOL and [m.type for m in a.modifiers] == ['ARMATURE'] and
+            not any(o.get(stack_input.STACK_KEY) for o in bpy.data.objects),
+            f"err {err:.2e}, {[m.type for m in a.modifiers]}")
+
+
 # --- a rig from another tool: FBX round trip ---------------------------------------------------
 
 def test_fbx_round_trip():
@@ -504,6 +581,8 @@ def test_evaluations_per_frame():
         def lattice_edit():
             bpy.data.objects["lat"].data.points[5].co_deform.z += 0.1
             bpy.context.view_layer.update()
+        parity("reopened: the stack read again", bpy.data.objects["A"], bpy.data.objects["B"],
+               bpy.data.objects["lat"], [bpy.data.objects["A"].modifiers["Smooth FFD"]])
         posed = _counted(pose, ("A", "B"))
         edited = _counted(lattice_edit, ("A", "B"))
     finally:
@@ -523,6 +602,7 @@ def main():
     T.setup()
     for fn in (test_armature, test_split_normals, test_modifiers_above, test_shape_keys,
                test_two_smooth_ffd, test_unsupported_below, test_render_stack,
+               test_edits_the_check_misses, test_check_without_addon, test_apply,
                test_fbx_round_trip, test_evaluations_per_frame):
         T.run(fn.__name__, fn)
     T.finish()

@@ -319,9 +319,12 @@ def set_stack_object(obj, mod, target):
 
 
 def remove(so):
+    """Deletes a stack object of this file (never a library's, nor an override of one)."""
+    if so.library is not None or getattr(so, "override_library", None) is not None:
+        return
     mesh = so.data
     bpy.data.objects.remove(so)
-    if mesh is not None and mesh.users == 0:
+    if mesh is not None and mesh.users == 0 and mesh.library is None:
         bpy.data.meshes.remove(mesh)
 
 

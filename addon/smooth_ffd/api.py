@@ -6,7 +6,7 @@
 """
 import bpy
 
-from . import bake, compat, handlers, inputs, linked, modifier_update, nodegroup
+from . import bake, compat, handlers, inputs, linked, modifier_update, nodegroup, stack_input
 
 
 def add_smooth_ffd(obj, lattice_obj=None, viewport_level=3, render_level=10, backend="auto",
@@ -53,6 +53,7 @@ def update(obj=None, mod=None, render=False, force=False):
     if obj is None:
         handlers.update_all(depsgraph=depsgraph, render=render, force=force)
     else:
+        stack_input.begin_pass()
         frame = modifier_update.scene_frame()
         for m in ([mod] if mod is not None else smooth_ffd_modifiers(obj)):
             if handlers.in_bake(m, frame):   # the group shows the bake here: nothing to do
@@ -111,9 +112,14 @@ def apply_smooth_ffd(obj, mod):
     with handlers.muted():
         name = mod.name   # the modifier is freed by the operator: never touch it after
         depsgraph = bpy.context.evaluated_depsgraph_get()
-        if not modifier_update.update_modifier(obj, mod, depsgraph, render=True, force=True):
+        # The object's own mesh, as Blender's Apply takes for a modifier that is not first
+        # (it reports "Applied modifier was not first"): the modifiers above stay and then
+        # deform the applied mesh, as they deformed the source.
+        if not modifier_update.update_modifier(obj, mod, depsgraph, render=True, force=True,
+                                               own_input=True):
             raise RuntimeError(f"Smooth FFD cannot be applied: {status(mod)}")
         ro = modifier_update.result_object(obj, mod, create=False)
+        so = compat.get_modifier_input(mod, "Stack Object") if _has_stack_input(mod) else None
         host = bake.bake_object(mod)
         depsgraph.update()
         if obj.data.users > 1:
@@ -128,6 +134,7 @@ def apply_smooth_ffd(obj, mod):
         # its plan can be hundreds of MB at the render level
         modifier_update.forget(ro=ro)
         _delete_result(ro)
+        _delete_stack(so)
         if host is not None and host.users == 0:
             bake.remove_host(host)
     return obj.data
@@ -137,10 +144,22 @@ def remove_smooth_ffd(obj, mod):
     """Removes the modifier; the object shows its (never modified) source mesh again."""
     linked.check_writable(obj, mod, "remove")
     ro = modifier_update.result_object(obj, mod, create=False)
+    so = compat.get_modifier_input(mod, "Stack Object") if _has_stack_input(mod) else None
     modifier_update.forget(obj, mod)
     bake.clear(obj, mod)
     obj.modifiers.remove(mod)
     _delete_result(ro)
+    _delete_stack(so)
+
+
+def _has_stack_input(mod):
+    return nodegroup.layout(mod.node_group) in nodegroup.STACK_LAYOUTS
+
+
+def _delete_stack(so):
+    """The modifier's stack object (stack_input), once nothing uses it."""
+    if so is not None and so.get(stack_input.STACK_KEY) is not None and so.users == 0:
+        stack_input.remove(so)
 
 
 def _delete_result(ro):

@@ -19,12 +19,15 @@ def write_uv_layers(mesh, res, source, plan):
     """Every source UV map on the result, same names, order, active and active-render flags.
     plan: the core plan res came from (the other maps are interpolated as res.uvs is)."""
     layers = mesh.uv_layers
-    while len(layers):
-        layers.remove(layers[0])
-    if res.uvs is None or not source.uv_layers:
+    names = [name for name, _ in source.uv_layers] if res.uvs is not None else []
+    keep = [layer.name for layer in layers] == names   # then overwrite them in place
+    if not keep:
+        while len(layers):
+            layers.remove(layers[0])
+    if not names:
         return
-    for name, uvs in source.uv_layers:
-        layer = layers.new(name=name)
+    for i, (name, uvs) in enumerate(source.uv_layers):
+        layer = layers[i] if keep else layers.new(name=name)
         values = res.uvs if name == source.uv_render else plan.interpolate_corners(uvs)
         compat.set_uvs(mesh, layer, values)
     by_name = {layer.name: layer for layer in layers}

@@ -9,7 +9,7 @@ import threading
 import bpy
 from bpy.app.handlers import persistent
 
-from . import bake, compat, linked, modifier_update, nodegroup
+from . import bake, compat, linked, modifier_update, nodegroup, stack_input
 
 _busy = False
 _rendering = False
@@ -32,8 +32,17 @@ def smooth_ffd_modifiers(scene=None):
     return out
 
 
-def update_all(scene=None, depsgraph=None, render=None, changed_meshes=None, force=False):
+def update_all(scene=None, depsgraph=None, render=None, changed_meshes=None, force=False,
+               changed=None, frame_change=False, defer_stack=False, in_handler=False):
     """Updates all Smooth FFD modifiers; returns how many wrote new geometry.
+
+    changed: (geometry, transform) sets of the original IDs the last evaluation updated
+    (None: unknown); frame_change: a new frame. defer_stack (render_pre, whose depsgraph is
+    the viewport's): modifiers that read the stack's geometry (stack_input) are not computed
+    but cleared, so that the render depsgraph's first evaluation of the frame passes their
+    input through, and frame_change_post computes them from the render's stack.
+    in_handler: called from a depsgraph evaluation's handler (depsgraph_update_post,
+    frame_change_post), where the depsgraph must not be evaluated again (stack_input.defer).
 
     Skipped: modifiers whose bake covers this frame (the group shows the bake), and in the
     viewport, objects the view layer does not show (hidden with H, in an excluded or hidden
@@ -53,6 +62,7 @@ def update_all(scene=None, depsgraph=None, render=None, changed_meshes=None, for
             depsgraph = bpy.context.evaluated_depsgraph_get()
         release_deleted_lattices()
         linked.report_scene(scene)
+        stack_input.begin_pass()
         frame = modifier_update.scene_frame(scene)
         view_layer = getattr(depsgraph, "view_layer", None) or bpy.context.view_layer
         count = 0
@@ -66,12 +76,18 @@ def update_all(scene=None, depsgraph=None, render=None, changed_meshes=None, for
             if not render and not force and not _shown(obj, view_layer):
                 hidden.append((obj, mod))
                 continue
+            if defer_stack and stack_input.Stack(obj, mod, render).reads_stack:
+                modifier_update.set_frames(mod, "Result", nodegroup.NEVER)
+                obj.update_tag()
+                continue
             # The object itself is re-evaluated whenever its lattice moves; only an update
             # of its mesh data means the source changed.
             mesh_changed = changed_meshes is None or obj.data in changed_meshes
             count += modifier_update.update_modifier(obj, mod, depsgraph, render=render,
                                                      mesh_changed=mesh_changed, force=force,
-                                                     scene=scene)
+                                                     scene=scene, changed=changed,
+                                                     frame_change=frame_change,
+                                                     can_evaluate=not in_handler)
         if hidden:
             needed = _needed([obj for obj, _ in hidden])
             for obj, mod in hidden:
@@ -79,7 +95,8 @@ def update_all(scene=None, depsgraph=None, render=None, changed_meshes=None, for
                     mesh_changed = changed_meshes is None or obj.data in changed_meshes
                     count += modifier_update.update_modifier(
                         obj, mod, depsgraph, render=render, mesh_changed=mesh_changed,
-                        scene=scene)
+                        scene=scene, changed=changed, frame_change=frame_change,
+                        can_evaluate=not in_handler)
                 else:
                     skipped_hidden[0] += 1
         return count
@@ -221,12 +238,15 @@ def guarded(fn, *args, **kwargs):
 
 
 def _changed_ids(depsgraph):
-    """Original IDs whose geometry the last evaluation updated (to skip re-reading meshes)."""
-    out = set()
+    """(geometry, transform): original IDs whose geometry / transform the last evaluation
+    updated (to skip re-reading meshes and the stack's geometry)."""
+    geometry, transform = set(), set()
     for u in depsgraph.updates:
         if u.is_updated_geometry:
-            out.add(u.id.original)
-    return out
+            geometry.add(u.id.original)
+        if u.is_updated_transform:
+            transform.add(u.id.original)
+    return geometry, transform
 
 
 @persistent
@@ -253,14 +273,15 @@ def on_depsgraph_update_pre(scene, depsgraph=None):
 def on_depsgraph_update(scene, depsgraph=None):
     if _busy or depsgraph is None:
         return
-    update_all(scene, depsgraph, changed_meshes=_changed_ids(depsgraph))
+    changed = _changed_ids(depsgraph)
+    update_all(scene, depsgraph, changed_meshes=changed[0], changed=changed, in_handler=True)
 
 
 @persistent
 def on_frame_change(scene, depsgraph=None):
     if _busy:
         return
-    update_all(scene, depsgraph)
+    update_all(scene, depsgraph, frame_change=True, in_handler=True)
 
 
 @persistent
@@ -330,7 +351,8 @@ def on_render_pre(scene, *_args):
     global _rendering
     _rendering = True
     # Final renders use the render level and exact normals; the frame is already set here.
-    update_all(scene, render=True)
+    # Modifiers reading the stack's geometry wait for the render depsgraph (frame_change_post).
+    update_all(scene, render=True, defer_stack=True)
 
 
 @persistent
@@ -344,8 +366,9 @@ def on_render_init(scene, *_args):
 def on_render_done(scene, *_args):
     global _rendering
     _rendering = False
-    # Back to the viewport level for the interactive session.
-    update_all(scene)
+    # Back to the viewport level for the interactive session; modifiers reading the stack's
+    # geometry read the viewport's on its next evaluation (their result is the render's).
+    update_all(scene, defer_stack=True)
 
 
 def is_rendering():

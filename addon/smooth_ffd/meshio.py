@@ -140,8 +140,8 @@ def write_topology(mesh, res, source, materials):
     attr = mesh.attributes.new(SOURCE_FACE_ATTRIBUTE, 'INT', 'FACE')
     attr.data.foreach_set("value", np.ascontiguousarray(res.face_index, np.int32))
     # Where each output vertex sits on the undeformed input (a rest-pose texture space).
-    attr = mesh.attributes.new(REST_ATTRIBUTE, 'FLOAT_VECTOR', 'POINT')
-    attr.data.foreach_set("vector", np.ascontiguousarray(res.rest_positions, np.float32).ravel())
+    mesh.attributes.new(REST_ATTRIBUTE, 'FLOAT_VECTOR', 'POINT')
+    write_rest_positions(mesh, res)
     # UV maps and vertex groups: carry.py, after this.
     compat.set_all_faces_smooth(mesh)
     flags = result_arrays.edge_flags(compat.get_edges(mesh), res.sharp_edges, n)
@@ -149,6 +149,12 @@ def write_topology(mesh, res, source, materials):
     # 3.4-4.0: auto smooth makes Blender compute split normals for the whole dense mesh on
     # every evaluation; only needed with sharp edges (custom normals turn it on themselves).
     compat.enable_split_normals(mesh, bool(flags.any()))
+
+
+def write_rest_positions(mesh, res):
+    """The smooth_ffd_rest_position attribute (another plan of the same output topology)."""
+    mesh.attributes[REST_ATTRIBUTE].data.foreach_set(
+        "vector", np.ascontiguousarray(res.rest_positions, np.float32).ravel())
 
 
 def write_positions(mesh, res):

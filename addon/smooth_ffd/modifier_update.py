@@ -7,7 +7,7 @@ import uuid
 import bpy
 import numpy as np
 
-from . import carry, compat, core, inputs, latticeio, linked, meshio, nodegroup
+from . import carry, compat, core, inputs, latticeio, linked, meshio, nodegroup, stack_input
 
 OWNER_KEY = "smooth_ffd_owner"          # result object -> source object's name_full (a string)
 MODIFIER_KEY = "smooth_ffd_modifier"    # result object -> modifier name
@@ -15,6 +15,7 @@ UID_KEY = "smooth_ffd_uid"              # result object -> its modifier's in-mem
 TOPOLOGY_KEY = "smooth_ffd_topology"    # result mesh -> plan that built its topology
 NORMALS_KEY = "smooth_ffd_normals"      # result mesh -> "exact" or "fast"
 EXTRAS_KEY = "smooth_ffd_extras"        # result mesh -> topology + carried UV maps / groups
+OUTPUT_KEY = "smooth_ffd_output"        # result mesh -> its triangles, faces, sharp edges
 
 
 class _State:
@@ -28,9 +29,16 @@ class _State:
         self.plan_key = None
         self.result = None        # the last core Result: its arrays are reused (out=)
         self.scratch = (None, {})  # (plan_key, meshio.write_normals' per-plan facts, buffers)
+        self.output = (None, None)  # (plan_key, digest of that plan's output topology)
         self.outs = {}            # layout -> the last result in it (out=; LAYOUT may change)
         self.status_base = None   # last "OK ..." status as (head, tail) (_set_ok_status)
-        self.above = 0            # enabled modifiers above this one, as last reported
+        self.note = None          # the stack warning, as last reported (stack_input.Stack.note)
+        self.source_kind = None   # where st.source was read (stack_input: OWN, EVALUATED, CHAIN)
+        self.stack_fp = None      # stack_input.settings_fingerprint when st.source was read
+        self.upper_key = None     # CHAIN: the last_key of the Smooth FFD above, when read
+        self.source_setting = None  # (vertex group, invert) st.source's weights were read with
+        self.mesh_fp = None       # stack_input.mesh_fingerprint of the object's mesh when read
+        self.deferred = False     # waiting for the next evaluation to read the stack
         self.lattice_gone = None  # a deleted lattice's name (handlers.release_deleted_lattices)
 
 
@@ -207,16 +215,21 @@ def scene_frame(scene=None, depsgraph=None):
     return float(scene.frame_current_final)
 
 
-def result_frames(obj, lattice_obj, frame):
+def result_frames(obj, lattice_obj, frame, stack=None):
     """The frames a result computed at `frame` is right for: all of them when nothing it
     depends on can change with time (no animation, drivers, parents, constraints, hooks or
-    shape keys on the lattice, the object or their data: the conditions of the early path),
-    else this frame only (half a frame either side, for motion blur's subframes)."""
+    shape keys on the lattice, the object or their data: the conditions of the early path;
+    with the stack's geometry as input, stack_input.time_dependent), else this frame only
+    (half a frame either side, for motion blur's subframes). A result bound to its frame also
+    makes the next frame's first evaluation pass the input through, where the add-on reads
+    the stack's geometry (stack_input)."""
     static = (lattice_obj is not None and lattice_obj.type == 'LATTICE'
               and latticeio.evaluates_to_original(lattice_obj)
               and latticeio.basis_matrix(lattice_obj) is not None
               and latticeio.basis_matrix(obj) is not None
-              and not latticeio.animated(obj.data))
+              and not latticeio.animated(obj.data)
+              and (stack is None or not stack.reads_stack
+                   or not stack_input.time_dependent(obj, stack)))
     return nodegroup.ALWAYS if static else (frame - 0.5, frame + 0.5)
 
 
@@ -255,11 +268,13 @@ def _source(obj, settings, st, mesh_changed):
     source.keep_normals_of(st.source)
     st.source = source
     st.source_stamp = stamp
+    st.source_kind = stack_input.OWN
     return st.source
 
 
 def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=False,
-                    early=False, scene=None):
+                    early=False, scene=None, changed=None, frame_change=False, own_input=False,
+                    can_evaluate=True):
     """Brings one modifier's result up to date; returns True when it wrote new geometry.
 
     Errors never propagate: they go to the status line and the console, and the modifier
@@ -271,6 +286,12 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
     checks every input again against the evaluated data, does).
     scene: the scene whose frame the result is for (default: the depsgraph's, else the
     context's); the result's frame range (nodegroup) is written from it.
+    changed: (geometry, transform) sets of the original IDs the last evaluation updated
+    (None: unknown); frame_change: called for a new frame. Both say whether the stack's
+    geometry must be read again (stack_input). own_input: take the object's own mesh even
+    with modifiers above (Apply, as Blender applies a modifier that is not first).
+    can_evaluate: the caller is not inside a depsgraph evaluation's handler, so the
+    depsgraph may be evaluated again to see the stack's geometry (stack_input.source).
     """
     st = None
     if obj.library is not None:   # linked data are never written (linked.py)
@@ -282,19 +303,27 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
         if ro is None:
             return False
         st = _state(ro)
-        gathered = _early_inputs(obj, mod, st) if early else \
-            _inputs(obj, mod, st, depsgraph, render, mesh_changed)
+        stack = stack_input.Stack(obj, mod, render and not early, own=own_input)
+        # Vertex groups on the result are for the modifiers below and Apply; with the stack's
+        # geometry as input only Smooth FFD modifiers are below, so they are carried where one
+        # is (it reads them), for render, Apply and Bake, and always without modifiers above.
+        groups = not stack.reads_stack or bool(stack.sffd_below) or render or force
+        gathered = _early_inputs(obj, mod, st, stack, groups) if early else \
+            _inputs(obj, mod, st, depsgraph, render, mesh_changed, stack, changed, frame_change,
+                    can_evaluate, groups)
         if gathered is None:
             return False
         settings, level, backend, exact, lattice_data, l2o, source, key = gathered
         st.lattice_gone = None
+        st.deferred = False
+        key = inputs.digest(key, groups)
         frame = scene_frame(scene, depsgraph)
-        frames = result_frames(obj, settings.lattice, frame)
-        above = modifiers_above(obj, mod, render)
+        frames = result_frames(obj, settings.lattice, frame, stack)
+        note = stack.note()
         if not force and key == st.last_key and _result_matches(ro.data, st):
             # Same inputs as the result holds: it is right for this frame too.
             if st.status_base is not None:
-                _set_ok_status(obj, mod, st, st.status_base, above, frames, frame, scene=scene)
+                _set_ok_status(obj, mod, st, st.status_base, note, frames, frame, scene=scene)
             return False
         rest, pts, interp, weights = lattice_data
         t0 = time.perf_counter()
@@ -320,14 +349,19 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
             lattice, out=st.outs.get(layout), normals=exact, layout=layout)
         deform_calls["normals" if exact else "positions_only"] += 1
         t1 = time.perf_counter()
-        times = _write_result(obj, ro, res, source, inputs.digest(plan_key), exact, st)
+        if st.output[0] is not st.plan_key:
+            # A new plan often keeps the output topology (an armature's next pose: the same
+            # knot-plane cuts): then only positions and what lies on the input move.
+            st.output = (st.plan_key, inputs.digest(res.triangles, res.face_index, res.sharp_edges,
+                                                 len(res.positions), source.material_index))
+        times = _write_result(obj, ro, res, source, inputs.digest(plan_key), exact, st, groups)
         normals = times.pop("normals")
         t2 = time.perf_counter()
         st.last_key = key
         used = res.stats.get("device", backend) if isinstance(res.stats, dict) else backend
         tail = (f"{len(res.triangles)} tris, deform {1e3 * (t1 - t0):.1f} ms, "
                 f"write {1e3 * (t2 - t1):.1f} ms ({normals} normals)")
-        _set_ok_status(obj, mod, st, (f"OK {used}, level {level}", tail), above, frames, frame,
+        _set_ok_status(obj, mod, st, (f"OK {used}, level {level}", tail), note, frames, frame,
                        wrote_result=True, scene=scene)
         _last_timing[uid(ro)] = {
             "deform_ms": 1e3 * (t1 - t0), "write_ms": 1e3 * (t2 - t1), "normals": normals,
@@ -335,7 +369,13 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
             "early": early, **times}
         counters["computed"] += 1
         counters["early" if early else "post"] += 1
+        stack_input.wrote(obj, mod)
         return True
+    except stack_input.Deferred:
+        # The stack's geometry is read on the next evaluation (stack_input.defer).
+        if st is not None:
+            st.deferred = True
+        return False
     except Exception as e:   # a bug or a core error: report it, never take Blender down
         if early:
             # Left to the post handler, which reads the same inputs again and reports what
@@ -388,19 +428,25 @@ def _key(lattice_key, l2o, settings, source, level, backend, exact):
                         backend, exact)
 
 
-def _inputs(obj, mod, st, depsgraph, render, mesh_changed):
+def _inputs(obj, mod, st, depsgraph, render, mesh_changed, stack, changed, frame_change,
+            can_evaluate, groups):
     """Everything one update uses, from the evaluated depsgraph, and its fingerprint."""
     settings = Settings(mod)
     level, backend, exact = _level_backend_exact(settings, render)
     rest, pts, interp, shape, lattice_key, weights = latticeio.read_lattice(settings.lattice, depsgraph)
     l2o = inputs.lattice_to_object(latticeio.world_matrix(obj, depsgraph),
                                   latticeio.world_matrix(settings.lattice, depsgraph))
-    source = _source(obj, settings, st, mesh_changed)
+    if stack.reads_stack:
+        source = stack_input.source(obj, mod, settings, st, stack, depsgraph, changed,
+                                    frame_change, can_evaluate, groups)
+    else:
+        stack_input.set_stack_object(obj, mod, None)   # no input check for the own mesh
+        source = _source(obj, settings, st, mesh_changed)
     key = _key(lattice_key, l2o, settings, source, level, backend, exact)
     return settings, level, backend, exact, (rest, pts, interp, weights), l2o, source, key
 
 
-def _early_inputs(obj, mod, st):
+def _early_inputs(obj, mod, st, stack, groups):
     """The inputs read before Blender evaluates an edit (depsgraph_update_pre), or None.
 
     On 3.4 a lattice edit is evaluated twice: the Smooth FFD modifier depends on its Lattice
@@ -411,10 +457,19 @@ def _early_inputs(obj, mod, st):
     evaluated values: a lattice without modifiers (hooks), shape keys or animation, objects
     whose world matrix is their own loc/rot/scale (no parent, constraints, animation, rigid
     body), a source already read, viewport level. The post handler reads the evaluated data
-    as always and recomputes if the fingerprint still differs.
+    as always and recomputes if the fingerprint still differs. With the stack's geometry as
+    input (stack_input) the last reading is used when the settings above are unchanged; the
+    post handler reads it again if the update changed what the stack above uses.
     """
-    if st.source is None or st.last_key is None:
+    if st.source is None or st.last_key is None or st.source_kind != stack.kind:
         return None
+    if stack.reads_stack:
+        if st.stack_fp != stack_input.settings_fingerprint(obj, stack):
+            return None
+        if stack.kind == stack_input.CHAIN:
+            up = state_of(obj, stack.upper)
+            if up is None or up.last_key is None or up.last_key != st.upper_key:
+                return None
     settings = Settings(mod)
     lat = settings.lattice
     if lat is None or lat.type != 'LATTICE' or not latticeio.evaluates_to_original(lat):
@@ -422,8 +477,13 @@ def _early_inputs(obj, mod, st):
     obj_matrix, lat_matrix = latticeio.basis_matrix(obj), latticeio.basis_matrix(lat)
     if obj_matrix is None or lat_matrix is None:
         return None
-    group_index = _group_index(obj, settings)
-    if st.source_stamp != _source_stamp(obj, group_index, settings):
+    if not stack.reads_stack:
+        group_index = _group_index(obj, settings)
+        if st.source_stamp != _source_stamp(obj, group_index, settings):
+            return None
+    elif st.source_setting is None or \
+            (settings.vertex_group, settings.invert) != st.source_setting[:2] or \
+            (groups and not st.source_setting[2]):
         return None
     level, backend, exact = _level_backend_exact(settings, False)
     rest, pts, interp, shape, lattice_key, weights = latticeio.read_lattice(lat, None)
@@ -456,34 +516,17 @@ def last_timing(obj, mod):
     return _last_timing.get(uid(ro)) if ro is not None else None
 
 
-def modifiers_above(obj, mod, render=False):
-    """How many enabled modifiers come before mod: their output is not this one's input (the
-    input is the object's own mesh), so the user is told."""
-    count = 0
-    for m in obj.modifiers:
-        if m == mod:
-            return count
-        if m.show_render if render else m.show_viewport:
-            count += 1
-    return 0
-
-
-def stack_warning(count):
-    return (f"warning: {count} modifier(s) above Smooth FFD are ignored (its input is the "
-            f"object's own mesh); move it first")
-
-
-def _set_ok_status(obj, mod, st, base, above, frames, frame, wrote_result=False, scene=None):
+def _set_ok_status(obj, mod, st, base, note, frames, frame, wrote_result=False, scene=None):
     """base: (head, tail) of the "OK ..." text; the frame goes between them when the result
     belongs to this frame only (a file opened without the add-on then says which frame it
-    shows), the stack and scene warnings after."""
+    shows), the stack warning (stack_input.Stack.note) and scene warnings after."""
     st.status_base = base
-    if above and above != st.above:   # once per change, not on every update
-        print(f"Smooth FFD [{obj.name} / {mod.name}]: {stack_warning(above)}")
-    st.above = above
+    if note and note != st.note:   # once per change, not on every update
+        print(f"Smooth FFD [{obj.name} / {mod.name}]: {note}")
+    st.note = note
     head, tail = base
     text = f"{head}, frame {frame:g}, {tail}" if frames != nodegroup.ALWAYS else f"{head}, {tail}"
-    notes = ([stack_warning(above)] if above else []) + lock_notes(scene)
+    notes = ([note] if note else []) + lock_notes(scene)
     if notes:
         text += "".join(f" \u2014 {n}" for n in notes)
     set_status(obj, mod, text, frames, wrote_result=wrote_result, report=False)
@@ -554,28 +597,37 @@ def _materials(obj):
         list(obj.data.materials)
 
 
-def _write_result(obj, ro, res, source, topology_token, exact, st):
-    """Writes res into the result mesh; returns timings (ms) and the normals path used."""
+def _write_result(obj, ro, res, source, topology_token, exact, st, groups=True):
+    """Writes res into the result mesh; returns timings (ms) and the normals path used.
+    groups: carry the vertex groups (else the result has none)."""
     mesh = ro.data
     t0 = time.perf_counter()
     mode = "exact" if exact else "fast"
-    same = (mesh.get(TOPOLOGY_KEY) == topology_token and len(mesh.vertices) == len(res.positions)
+    same = (mesh.get(OUTPUT_KEY) == st.output[1] and mesh.get(TOPOLOGY_KEY) is not None
+            and len(mesh.vertices) == len(res.positions)
             and len(mesh.polygons) == len(res.triangles))
     # Going back from exact to fast on 3.4-4.4 needs the custom-normal layer gone: rebuild.
     rebuild = not same or (mesh.get(NORMALS_KEY) == "exact" and mode == "fast")
     if rebuild:
         meshio.write_topology(mesh, res, source, _materials(obj))
-        mesh[TOPOLOGY_KEY] = topology_token
+        mesh[OUTPUT_KEY] = st.output[1]
     else:
         meshio.write_positions(mesh, res)
+        if mesh.get(TOPOLOGY_KEY) != topology_token:
+            # Another plan with the same topology: the points on the input moved with it.
+            meshio.write_rest_positions(mesh, res)
+    mesh[TOPOLOGY_KEY] = topology_token
     # UV maps and vertex groups: with a new topology, or when only they changed.
-    extras_token = inputs.digest(topology_token, source.extras_key)
+    extras_token = inputs.digest(topology_token, source.extras_key, groups)
     carry_ms, carry_calls = 0.0, 0
     if rebuild or mesh.get(EXTRAS_KEY) != extras_token:
         tc = time.perf_counter()
         plan = st.deformer.plan   # where the output lies on the input (docs/api.md)
         carry.write_uv_layers(mesh, res, source, plan)
-        carry_calls = carry.write_vertex_groups(ro, source, plan)
+        if groups:
+            carry_calls = carry.write_vertex_groups(ro, source, plan)
+        elif len(ro.vertex_groups):
+            ro.vertex_groups.clear()
         mesh[EXTRAS_KEY] = extras_token
         carry_ms = 1e3 * (time.perf_counter() - tc)
     t1 = time.perf_counter()

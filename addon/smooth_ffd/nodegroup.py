@@ -9,15 +9,17 @@ where the add-on does not run never shows one frame's result on another frame):
 - inside the bake's frames [Bake From, Bake To): the bake (bake.py), whatever else holds;
 - else inside the frames the live result belongs to [Result From, Result To) (the add-on
   writes the frame it computed, or the whole timeline when nothing the result depends on
-  is animated): the live result;
+  is animated), and, where the modifier reads the stack's geometry above it (a Stack
+  Object is set, stack_input), only while its input has the vertices of that Stack Object
+  (the input the result was computed from: same count, same positions): the live result;
 - else the source geometry, unchanged (no result for this frame, or an error); on Blender
   4.5+ a Warning node then says so in the modifier panel.
 
 Layouts (the group's GROUP_TAG value): 1, Backend a text input (Blender 3.4-4.0); 2, Backend a
 menu (4.1+: a menu socket feeding a Menu Switch node, which defines the items); 3 and 4, the
-same with the frame ranges and the bake (Show Result folded into the result's frame range).
-Files made with an older layout are moved to this Blender's when opened (migrate), keeping
-every setting.
+same with the frame ranges and the bake (Show Result folded into the result's frame range);
+5 and 6, the same with the Stack Object and its input check. Files made with an older layout
+are moved to this Blender's when opened (migrate), keeping every setting.
 """
 import bpy
 
@@ -26,10 +28,13 @@ from . import compat
 GROUP_NAME = "Smooth FFD"
 GROUP_TAG = "smooth_ffd_group"   # custom property marking our group (value: layout version)
 TEXT_LAYOUT, MENU_LAYOUT = 1, 2              # before the frame ranges (files of older add-ons)
-TEXT_FRAMES_LAYOUT, MENU_FRAMES_LAYOUT = 3, 4
-GROUP_LAYOUT = MENU_FRAMES_LAYOUT if compat.HAS_MENU_SOCKET else TEXT_FRAMES_LAYOUT
-MENU_LAYOUTS = (MENU_LAYOUT, MENU_FRAMES_LAYOUT)
-FRAMES_LAYOUTS = (TEXT_FRAMES_LAYOUT, MENU_FRAMES_LAYOUT)
+TEXT_FRAMES_LAYOUT, MENU_FRAMES_LAYOUT = 3, 4   # before the Stack Object (older add-ons)
+TEXT_STACK_LAYOUT, MENU_STACK_LAYOUT = 5, 6
+GROUP_LAYOUT = MENU_STACK_LAYOUT if compat.HAS_MENU_SOCKET else TEXT_STACK_LAYOUT
+MENU_LAYOUTS = (MENU_LAYOUT, MENU_FRAMES_LAYOUT, MENU_STACK_LAYOUT)
+STACK_LAYOUTS = (TEXT_STACK_LAYOUT, MENU_STACK_LAYOUT)
+FRAMES_LAYOUTS = (TEXT_FRAMES_LAYOUT, MENU_FRAMES_LAYOUT) + STACK_LAYOUTS
+LAYOUTS = (TEXT_LAYOUT, MENU_LAYOUT) + FRAMES_LAYOUTS
 BACKEND_ITEMS = ("Auto", "CPU", "CUDA")   # the menu's items (inputs.parse_backend reads any case)
 
 # Frame ranges are half-open [from, to); an empty one (from > to) selects nothing, an
@@ -51,7 +56,7 @@ SETTINGS = (
     ("Status", 'NodeSocketString', "", None, None, "Backend used, last update time, or the error"),
 )
 # Internal inputs written by the add-on, hidden from the panel where Blender allows it (4.2+).
-INTERNAL_INPUTS = (
+FRAMES_INTERNAL_INPUTS = (
     ("Result Object", 'NodeSocketObject', None, None, None, "Internal: the hidden result mesh"),
     ("Result From", 'NodeSocketFloat', NEVER[0], None, None,
      "Internal: first frame the result belongs to"),
@@ -61,6 +66,10 @@ INTERNAL_INPUTS = (
     ("Bake From", 'NodeSocketFloat', NEVER[0], None, None, "Internal: first baked frame - 1/2"),
     ("Bake To", 'NodeSocketFloat', NEVER[1], None, None, "Internal: last baked frame + 1/2"),
 )
+INTERNAL_INPUTS = FRAMES_INTERNAL_INPUTS + (
+    ("Stack Object", 'NodeSocketObject', None, None, None,
+     "Internal: the vertices of the input the result was computed from (stack_input)"),
+)
 INPUTS = SETTINGS + INTERNAL_INPUTS
 INTERNAL = tuple(name for name, *_ in INTERNAL_INPUTS)
 # Layouts 1 and 2 (older files): a validity flag instead of the frame ranges, no bake.
@@ -68,8 +77,8 @@ OLD_INTERNAL_INPUTS = (
     ("Result Object", 'NodeSocketObject', None, None, None, "Internal: the hidden result mesh"),
     ("Show Result", 'NodeSocketBool', False, None, None, "Internal: the result is valid"),
 )
-STALE_MESSAGE = ("Smooth FFD: no result for this frame (the add-on did not compute it, see "
-                 "Status): showing the source mesh")
+STALE_MESSAGE = ("Smooth FFD: no result for this frame or this input (the add-on did not "
+                 "compute it, see Status): showing the input")
 
 
 def is_smooth_ffd_group(group):
@@ -106,8 +115,10 @@ def _build_group(group_layout=GROUP_LAYOUT):
     group[GROUP_TAG] = group_layout
     menu = group_layout in MENU_LAYOUTS
     frames = group_layout in FRAMES_LAYOUTS
+    stack = group_layout in STACK_LAYOUTS
     compat.new_group_socket(group, 'INPUT', 'NodeSocketGeometry', "Geometry")
-    internal = INTERNAL_INPUTS if frames else OLD_INTERNAL_INPUTS
+    internal = INTERNAL_INPUTS if stack else FRAMES_INTERNAL_INPUTS if frames else \
+        OLD_INTERNAL_INPUTS
     for name, stype, default, lo, hi, desc in SETTINGS + internal:
         if name == "Backend" and menu:
             stype, default, desc = 'NodeSocketMenu', None, "Auto (CUDA when usable), CPU or CUDA"
@@ -137,19 +148,21 @@ def _build_group(group_layout=GROUP_LAYOUT):
         links.new(info.outputs["Geometry"], true_in)
         links.new(_switch_out(switch), gout.inputs[0])
     else:
-        _frame_switches(group, gin, gout, info)
+        _frame_switches(group, gin, gout, info, stack)
     if menu:
         _backend_menu(group, gin)
     return group
 
 
-def _frame_switches(group, gin, gout, info):
+def _frame_switches(group, gin, gout, info, stack=False):
     """Source, live result or bake by the frame the depsgraph evaluates (module docstring)."""
     nodes, links = group.nodes, group.links
     time = nodes.new('GeometryNodeInputSceneTime')
     time.location = (-650, 300)
     frame = time.outputs["Frame"]   # with the subframe (motion blur), as Blender evaluates it
     in_result = _in_range(group, frame, _out(gin, "Result From"), _out(gin, "Result To"), -300)
+    if stack:
+        in_result = _boolean(group, 'AND', (in_result, _stack_matches(group, gin)), (-150, 300))
     in_bake = _in_range(group, frame, _out(gin, "Bake From"), _out(gin, "Bake To"), -100)
     show_live = in_result
     if compat.HAS_WARNING_NODE:
@@ -183,6 +196,65 @@ def _frame_switches(group, gin, gout, info):
     links.new(_switch_out(baked), gout.inputs[0])
 
 
+def _stack_matches(group, gin):
+    """Boolean socket: no Stack Object is set (an empty geometry), or the input geometry has
+    its vertices: the same number, each at the same position (exactly: both are the stack's
+    float32 positions, evaluated by the same code). The positions are compared on a switched
+    geometry, so nothing is sampled without a Stack Object."""
+    nodes, links = group.nodes, group.links
+    geo = _out(gin, "Geometry")
+    ref = nodes.new('GeometryNodeObjectInfo')
+    ref.transform_space = 'ORIGINAL'
+    ref.location = (-1150, 700)
+    links.new(_out(gin, "Stack Object"), ref.inputs["Object"])
+    ref_geo = ref.outputs["Geometry"]
+    ref_size = _domain_size(group, ref_geo, (-950, 800))
+    in_size = _domain_size(group, geo, (-950, 650))
+    has_ref = _compare(group, 'GREATER_THAN', ref_size, 0, (-750, 850), 'INT')
+    same_count = _compare(group, 'EQUAL', ref_size, in_size, (-750, 700), 'INT')
+    checked = _switch(group, (-750, 550))
+    cond, _false_in, true_in = _switch_sockets(checked)   # false: an empty geometry
+    links.new(has_ref, cond)
+    links.new(geo, true_in)
+    sample = nodes.new('GeometryNodeSampleIndex')
+    sample.data_type = 'FLOAT_VECTOR'
+    sample.domain = 'POINT'
+    sample.location = (-550, 700)
+    s_geo = next(s for s in sample.inputs if s.type == 'GEOMETRY')
+    s_val = next(s for s in sample.inputs if s.enabled and s.type == 'VECTOR')
+    s_idx = next(s for s in sample.inputs if s.enabled and s.type == 'INT')
+    links.new(ref_geo, s_geo)
+    links.new(nodes.new('GeometryNodeInputPosition').outputs[0], s_val)
+    links.new(nodes.new('GeometryNodeInputIndex').outputs[0], s_idx)
+    dist = nodes.new('ShaderNodeVectorMath')
+    dist.operation = 'DISTANCE'
+    dist.location = (-350, 700)
+    links.new(nodes.new('GeometryNodeInputPosition').outputs[0], dist.inputs[0])
+    links.new(next(s for s in sample.outputs if s.enabled and s.type == 'VECTOR'),
+              dist.inputs[1])
+    stat = nodes.new('GeometryNodeAttributeStatistic')
+    stat.data_type = 'FLOAT'
+    stat.domain = 'POINT'
+    stat.location = (-150, 700)
+    links.new(_switch_out(checked), next(s for s in stat.inputs if s.type == 'GEOMETRY'))
+    links.new(next(s for s in dist.outputs if s.type == 'VALUE'),
+              next(s for s in stat.inputs if s.enabled and s.type == 'VALUE'))
+    biggest = next(s for s in stat.outputs if s.enabled and s.name == "Max")
+    same_place = _compare(group, 'LESS_EQUAL', biggest, 0.0, (50, 700))
+    same = _boolean(group, 'AND', (same_count, same_place), (250, 700))
+    no_ref = _boolean(group, 'NOT', (has_ref,), (250, 850))
+    return _boolean(group, 'OR', (no_ref, same), (450, 800))
+
+
+def _domain_size(group, geometry, location):
+    """Point count of a geometry's mesh."""
+    node = group.nodes.new('GeometryNodeAttributeDomainSize')
+    node.component = 'MESH'
+    node.location = location
+    group.links.new(geometry, node.inputs[0])
+    return node.outputs["Point Count"]
+
+
 def _in_range(group, value, lo, hi, y):
     """Boolean socket: lo <= value < hi."""
     ge = _compare(group, 'GREATER_EQUAL', value, lo, (-450, y))
@@ -190,15 +262,15 @@ def _in_range(group, value, lo, hi, y):
     return _boolean(group, 'AND', (ge, lt), (-300, y))
 
 
-def _compare(group, operation, a, b, location):
+def _compare(group, operation, a, b, location, data_type='FLOAT'):
     node = group.nodes.new('FunctionNodeCompare')
-    node.data_type = 'FLOAT'
+    node.data_type = data_type
     node.operation = operation
     node.location = location
     sock_a, sock_b = [s for s in node.inputs if s.enabled][:2]
     for sock, src in ((sock_a, a), (sock_b, b)):
         if isinstance(src, (int, float)):
-            sock.default_value = float(src)
+            sock.default_value = int(src) if data_type == 'INT' else float(src)
         else:
             group.links.new(src, sock)
     return node.outputs[0]
@@ -248,14 +320,14 @@ def _backend_menu(group, gin):
 def migrate(mod):
     """Moves a modifier using an older layout's group (a file from an older add-on or from
     3.4-4.0) to this Blender's group, keeping every setting; returns True when it did. Only
-    upgrades: text to menu, no frame ranges to frame ranges."""
+    upgrades: text to menu, no frame ranges to frame ranges, no Stack Object to one."""
     old = mod.node_group
     old_layout = layout(old)
-    if not is_smooth_ffd_group(old) or old_layout not in (TEXT_LAYOUT, MENU_LAYOUT,
-                                                           TEXT_FRAMES_LAYOUT, MENU_FRAMES_LAYOUT) \
+    if not is_smooth_ffd_group(old) or old_layout not in LAYOUTS \
             or old_layout == GROUP_LAYOUT \
             or (old_layout in MENU_LAYOUTS and GROUP_LAYOUT not in MENU_LAYOUTS) \
-            or (old_layout in FRAMES_LAYOUTS and GROUP_LAYOUT not in FRAMES_LAYOUTS):
+            or (old_layout in FRAMES_LAYOUTS and GROUP_LAYOUT not in FRAMES_LAYOUTS) \
+            or (old_layout in STACK_LAYOUTS and GROUP_LAYOUT not in STACK_LAYOUTS):
         return False
     values = {}
     for name, *_ in INPUTS:

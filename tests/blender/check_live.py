@@ -501,7 +501,7 @@ def test_backend_setting():
     kind = getattr(sock, "socket_type", None) or sock.bl_socket_idname
     want = 'NodeSocketMenu' if compat.HAS_MENU_SOCKET else 'NodeSocketString'
     T.check("Backend socket type", kind == want and nodegroup.layout(mod.node_group) ==
-            (4 if compat.HAS_MENU_SOCKET else 3), f"{kind}, layout {nodegroup.layout(mod.node_group)}")
+            nodegroup.GROUP_LAYOUT, f"{kind}, layout {nodegroup.layout(mod.node_group)}")
     got = compat.get_modifier_input(mod, "Backend")
     T.check("default backend auto", str(got).lower() == "auto", repr(got))
     if compat.HAS_MENU_SOCKET:
@@ -542,7 +542,7 @@ def test_text_backend_file():
     obj, lat, ref = (bpy.data.objects[n] for n in ("src", "lat", "src.ref"))
     mod = obj.modifiers[0]
     T.update()
-    want = 4 if compat.HAS_MENU_SOCKET else 3
+    want = nodegroup.GROUP_LAYOUT
     T.check("opened: layout of this Blender", nodegroup.layout(mod.node_group) == want and
             len([g for g in bpy.data.node_groups if nodegroup.is_smooth_ffd_group(g)]) == 1,
             f"layout {nodegroup.layout(mod.node_group)}, groups {[g.name for g in bpy.data.node_groups]}")

@@ -615,10 +615,11 @@ def test_lock_interface():
 
 
 def test_migrate_layouts():
-    """A group of 3.4-4.0 with frame ranges (layout 3) moves to the menu group (4) on 4.1+,
-    keeping the frame ranges and the bake; an older group (1) on 3.4-4.0 moves to 3."""
+    """A group of 3.4-4.0 with frame ranges and no Stack Object (layout 3, older add-ons)
+    moves to this Blender's group (5 on 3.4-4.0, 6 with the Backend menu on 4.1+), keeping
+    the frame ranges and the bake."""
     obj, lat, mod = scene_setup("cube", animate=False)
-    old_layout = nodegroup.TEXT_FRAMES_LAYOUT if compat.HAS_MENU_SOCKET else nodegroup.TEXT_LAYOUT
+    old_layout = nodegroup.TEXT_FRAMES_LAYOUT
     old = nodegroup._build_group(old_layout)
     old_name = old.name
     ro = modifier_update.result_object(obj, mod, create=False)

@@ -43,10 +43,10 @@ def _load_addon():
 # they test whichever copy this is (installed: bl_ext.user_default.smooth_ffd on 4.2+).
 smooth_ffd = _load_addon()
 MODULES = ("api", "bake", "carry", "compat", "core", "handlers", "inputs", "latticeio", "linked",
-           "meshio", "modifier_update", "nodegroup", "result_arrays")
+           "meshio", "modifier_update", "nodegroup", "result_arrays", "stack_input")
 (api, bake, carry, compat, core, handlers, inputs, latticeio, linked, meshio, modifier_update,
- nodegroup, result_arrays) = (importlib.import_module(f"{smooth_ffd.__name__}.{m}")
-                              for m in MODULES)
+ nodegroup, result_arrays, stack_input) = (importlib.import_module(f"{smooth_ffd.__name__}.{m}")
+                                           for m in MODULES)
 
 _registered = INSTALLED   # enabling an installed add-on registers it
 _results = []

@@ -1,0 +1,481 @@
+"""The stack's geometry as a Smooth FFD modifier's input (issue 18, item 1): what Blender's own
+Lattice modifier at the same position would deform, when modifiers or shape keys sit above.
+
+Python cannot read a Geometry Nodes modifier's input, so the add-on reads it where Blender
+already shows it. The node group passes its input through unchanged whenever it has no
+result for the frame evaluated, or when its input lacks the vertices of the Stack Object
+(nodegroup: a hidden mesh object holding the positions of the input the result was
+computed from). After such an evaluation, with nothing but Smooth FFD modifiers (passing
+through too) below it, the evaluated object *is* the stack's geometry at this position, with
+its split normals, UV maps, vertex groups and material indices, and the handler of that
+evaluation reads it (source). So:
+
+- playback: a moving input (a pose, animated shape keys) differs from the Stack Object, and
+  a result whose inputs change with time belongs to its frame only
+  (modifier_update.result_frames), so the first evaluation of a new frame passes the input
+  through; frame_change_post reads it there and computes, and Blender's second evaluation of
+  that frame (which it runs for any handler that changed data) shows the result: the
+  modifiers above are evaluated twice a frame, once more than with Blender's Lattice
+  modifier;
+- an edit on the same frame that moves vertices passes through in the evaluation the edit
+  makes, and is read there; a lattice edit reads nothing (the last reading is kept);
+- an edit the check does not see (the mesh's UV maps, materials, sharp edges; settings that
+  keep the vertices in place) finds the result shown: outside depsgraph handlers the
+  depsgraph is evaluated once more (force_passthrough); inside them that crashes Blender
+  after a relations update, so the frame ranges are cleared and the next evaluation reads it
+  (defer);
+- a Smooth FFD modifier right below another one takes that one's result mesh as its input
+  (or its bake on a baked frame), converging in stack order within one handler call.
+
+Not served (the input is the object's own mesh then, and the status says so): modifiers
+other than Smooth FFD below this one while something sits above it (Stack.note).
+"""
+import threading
+
+import bpy
+import numpy as np
+
+from . import inputs, latticeio, nodegroup
+
+OWN, EVALUATED, CHAIN, UNSUPPORTED = "own", "evaluated", "chain", "unsupported"
+
+# Modifier types whose output depends on nothing but their settings, the input and the IDs
+# they point at (checked separately): their geometry changes with the frame only when those
+# are animated. Anything else (Wave, Build, Ocean, simulations, caches, Geometry Nodes that
+# may read the scene time...) counts as changing on every frame.
+STATIC_TYPES = frozenset((
+    'ARMATURE', 'ARRAY', 'BEVEL', 'BOOLEAN', 'CAST', 'CORRECTIVE_SMOOTH', 'CURVE',
+    'DATA_TRANSFER', 'DECIMATE', 'DISPLACE', 'EDGE_SPLIT', 'HOOK', 'LAPLACIANDEFORM',
+    'LAPLACIANSMOOTH', 'LATTICE', 'MASK', 'MESH_DEFORM', 'MIRROR', 'MULTIRES', 'NORMAL_EDIT',
+    'REMESH', 'SCREW', 'SHRINKWRAP', 'SIMPLE_DEFORM', 'SKIN', 'SMOOTH', 'SOLIDIFY', 'SUBSURF',
+    'SURFACE_DEFORM', 'TRIANGULATE', 'UV_PROJECT', 'UV_WARP', 'VERTEX_WEIGHT_EDIT',
+    'VERTEX_WEIGHT_MIX', 'VERTEX_WEIGHT_PROXIMITY', 'WARP', 'WEIGHTED_NORMAL', 'WELD',
+    'WIREFRAME'))
+
+# Types whose output besides positions (UV maps, weights, normals) follows IDs they point at.
+NON_POSITIONAL_TYPES = frozenset(('UV_PROJECT', 'UV_WARP', 'VERTEX_WEIGHT_PROXIMITY',
+                                  'DATA_TRANSFER', 'NORMAL_EDIT', 'NODES'))
+
+# How often the stack's geometry was read, and how often that took one more evaluation of the
+# depsgraph (force_passthrough) or waited for the next one (defer); tests read them.
+counters = {"forced": 0, "reads": 0, "deferred": 0}
+
+
+def enabled(m, render):
+    return m.show_render if render else m.show_viewport
+
+
+class Stack:
+    """Where one Smooth FFD modifier sits in its object's stack, for the viewport or render:
+    the enabled modifiers above and below, shape keys, and which input it gets (`kind`):
+
+    OWN          nothing above, no shape keys: the object's own mesh (the fast path)
+    EVALUATED    the evaluated object after an evaluation in which it passed its input through
+    CHAIN        the enabled modifier right above is a Smooth FFD: its result (or bake)
+    UNSUPPORTED  something above, and modifiers other than Smooth FFD below: the own mesh
+    """
+
+    def __init__(self, obj, mod, render=False, own=False):
+        mods = list(obj.modifiers)
+        k = next((i for i, m in enumerate(mods) if m == mod), len(mods))
+        self.above = [m for m in mods[:k] if enabled(m, render)]
+        self.below = [m for m in mods[k + 1:] if enabled(m, render)]
+        key = obj.data.shape_keys if obj.type == 'MESH' else None
+        self.shape_keys = key is not None and len(key.key_blocks) > 0
+        last = self.above[-1] if self.above else None
+        self.upper = last if last is not None and nodegroup.is_smooth_ffd_modifier(last) else None
+        self.sffd_below = [m for m in self.below if nodegroup.is_smooth_ffd_modifier(m)]
+        self.other_below = [m for m in self.below if not nodegroup.is_smooth_ffd_modifier(m)]
+        self.render = render
+        if own or (not self.above and not self.shape_keys):
+            self.kind = OWN
+        elif self.upper is not None:
+            self.kind = CHAIN
+        elif self.other_below:
+            self.kind = UNSUPPORTED
+        else:
+            self.kind = EVALUATED
+
+    @property
+    def reads_stack(self):
+        return self.kind in (EVALUATED, CHAIN)
+
+    def note(self):
+        """The status warning for a stack it cannot read (None when it reads it)."""
+        if self.kind != UNSUPPORTED:
+            return None
+        names = ", ".join(repr(m.name) for m in self.other_below)
+        what = (f"{len(self.above)} modifier(s)" if self.above else "") + \
+            (" and " if self.above and self.shape_keys else "") + \
+            ("shape keys" if self.shape_keys else "")
+        return (f"warning: {what} above Smooth FFD are ignored (its input is the object's own "
+                f"mesh) while other modifiers follow it ({names}); move those above it or "
+                f"apply them")
+
+
+# --- what the stack above depends on ----------------------------------------------------
+
+def referenced_ids(m):
+    """The IDs a modifier's settings point at (objects, collections, textures, node groups
+    and, for Geometry Nodes modifiers, the IDs in their inputs), with the data of objects."""
+    out = []
+    for prop in m.bl_rna.properties:
+        if prop.type == 'POINTER' and prop.identifier != "rna_type":
+            value = getattr(m, prop.identifier, None)
+            if isinstance(value, bpy.types.ID):
+                out.append(value)
+    if m.type == 'NODES':
+        for key in m.keys():
+            value = m[key]
+            if isinstance(value, bpy.types.ID):
+                out.append(value)
+    more = []
+    for ident in out:
+        if isinstance(ident, bpy.types.Object) and ident.data is not None:
+            more.append(ident.data)
+        elif isinstance(ident, bpy.types.Collection):
+            more.extend(ident.all_objects)
+    return out + more
+
+
+def _refers_to_objects(stack):
+    return any(isinstance(i, bpy.types.Object) for m in stack.above for i in referenced_ids(m))
+
+
+def time_dependent(obj, stack):
+    """Whether the stack's geometry at this position may change from frame to frame:
+    animation or drivers on the object, its mesh or shape keys, a modifier above of a type not
+    in STATIC_TYPES (or a texture-driven one with a texture), an ID a modifier above points
+    at that is animated, parented or constrained (an armature: also bone constraints), or a
+    Smooth FFD above whose result belongs to one frame."""
+    from . import modifier_update   # it imports this module
+    if latticeio.animated(obj) or latticeio.animated(obj.data):
+        return True
+    key = obj.data.shape_keys
+    if key is not None and latticeio.animated(key):
+        return True
+    if _refers_to_objects(stack) and latticeio.basis_matrix(obj) is None:
+        return True
+    for m in stack.above:
+        if nodegroup.is_smooth_ffd_modifier(m):
+            if modifier_update.get_frames(m, "Result") != nodegroup.ALWAYS:
+                return True
+            continue
+        if m.type not in STATIC_TYPES:
+            return True
+        if m.type in ('DISPLACE', 'WARP') and getattr(m, "texture", None) is not None:
+            return True
+        for ident in referenced_ids(m):
+            if latticeio.animated(ident):
+                return True
+            if isinstance(ident, bpy.types.Object):
+                if latticeio.basis_matrix(ident) is None:
+                    return True
+                if ident.type == 'ARMATURE' and ident.pose is not None and \
+                        any(len(b.constraints) for b in ident.pose.bones):
+                    return True
+                if ident.type == 'MESH' and ident.data.shape_keys is not None and \
+                        latticeio.animated(ident.data.shape_keys):
+                    return True
+    return False
+
+
+def _rna_values(m):
+    out = []
+    for prop in m.bl_rna.properties:
+        ident = prop.identifier
+        if ident in ("rna_type", "is_override_data_editable", "is_active",
+                     "persistent_uid", "show_expanded", "is_pin_to_last") or \
+                prop.type == 'COLLECTION':
+            continue
+        try:
+            value = getattr(m, ident)
+        except AttributeError:
+            continue
+        if isinstance(value, bpy.types.ID):
+            value = value.name_full
+        elif prop.type == 'POINTER':
+            continue
+        elif hasattr(value, "__len__") and not isinstance(value, str):
+            value = tuple(value)
+        out.append((ident, value))
+    if m.type == 'NODES':
+        for key in sorted(m.keys()):
+            value = m[key]
+            out.append((key, value.name_full if isinstance(value, bpy.types.ID) else
+                        repr(value.to_list() if hasattr(value, "to_list") else value)))
+    return repr(out)
+
+
+def settings_fingerprint(obj, stack):
+    """Digest of what the original data say about the stack above (readable before an
+    evaluation too): each modifier's type, name and settings, the shape keys' values and
+    settings, the object's shape-key display flags."""
+    parts = [stack.kind, stack.render]
+    for m in stack.above:
+        parts.append((m.type, m.name, _rna_values(m)))
+    key = obj.data.shape_keys
+    if key is not None:
+        parts.append((key.use_relative, key.eval_time, obj.active_shape_key_index,
+                      obj.show_only_shape_key, obj.use_shape_key_edit_mode,
+                      tuple((kb.name, kb.value, kb.mute, kb.relative_key.name,
+                             kb.slider_min, kb.slider_max, kb.vertex_group, kb.interpolation)
+                            for kb in key.key_blocks)))
+    return inputs.digest(*parts)
+
+
+# --- reading ------------------------------------------------------------------------------
+
+class Deferred(Exception):
+    """The stack's geometry is read on the next evaluation (defer)."""
+
+
+_wrote = set()   # (object as_pointer, modifier name) that wrote a result in this round
+
+
+def begin_pass():
+    """Called where one round of updates starts (handlers.update_all, api.update)."""
+    _wrote.clear()
+
+
+def wrote(obj, mod):
+    _wrote.add((obj.as_pointer(), mod.name))
+
+
+def mesh_fingerprint(mesh):
+    """Digest of what a mesh holds besides its vertex positions, which the group's input check
+    does not see: counts, faces, UV maps, material indices, sharp edges, flat faces, custom
+    normals present (not the deform weights: no bulk read exists for them)."""
+    from . import compat
+    parts = [len(mesh.vertices), len(mesh.edges), len(mesh.loops), len(mesh.polygons),
+             compat.get_corner_verts(mesh), compat.get_material_index(mesh),
+             getattr(mesh, "has_custom_normals", None)]
+    for layer in mesh.uv_layers:
+        parts += [layer.name, compat.get_uvs(mesh, layer)]
+    flags = np.empty(len(mesh.edges), dtype=bool)
+    mesh.edges.foreach_get("use_edge_sharp", flags)
+    smooth = np.empty(len(mesh.polygons), dtype=bool)
+    mesh.polygons.foreach_get("use_smooth", smooth)
+    parts += [flags, smooth]
+    return inputs.digest(*parts)
+
+
+def shows_result(mesh, results):
+    """Whether an evaluated mesh is one of the given result meshes (then the group showed a
+    result, not its input): same counts and positions."""
+    from . import compat
+    for res in results:
+        if res is None or len(res.vertices) != len(mesh.vertices) or \
+                len(res.polygons) != len(mesh.polygons) or len(res.vertices) == 0:
+            continue
+        if (compat.get_positions(res) == compat.get_positions(mesh)).all():
+            return True
+    return False
+
+
+STACK_KEY = "smooth_ffd_stack"   # stack object -> the uid of its modifier's result object
+
+
+def stack_object(obj, mod, ro):
+    """The hidden mesh object holding the vertices of the input the result was computed from
+    (the group's Stack Object: the input check), one per modifier, never linked to a scene.
+    Only vertices: the group compares their number and positions."""
+    from . import compat, modifier_update
+    so = compat.get_modifier_input(mod, "Stack Object")
+    key = modifier_update.uid(ro)
+    if so is not None and so.type == 'MESH' and so.get(STACK_KEY) == key:
+        return so
+    name = f"{obj.name}.{mod.name}.stack"
+    so = bpy.data.objects.new(name, bpy.data.meshes.new(name))
+    so[STACK_KEY] = key
+    return so
+
+
+def record(so, positions):
+    """Writes the input's vertex positions into the stack object's mesh."""
+    from . import compat
+    me = so.data
+    if len(me.vertices) != len(positions):
+        me.clear_geometry()
+        me.vertices.add(len(positions))
+    compat.set_positions(me, positions)
+    me.update()
+
+
+def set_stack_object(obj, mod, target):
+    """Points the modifier's Stack Object input at `target` (None: no input check) when it
+    differs (a new pointer rebuilds the depsgraph's relations); lets go of an own stack
+    object no longer used."""
+    from . import compat, nodegroup as ng
+    if ng.layout(mod.node_group) not in ng.STACK_LAYOUTS:
+        return
+    old = compat.get_modifier_input(mod, "Stack Object")
+    if old == target:
+        return
+    compat.set_modifier_input(mod, "Stack Object", target)
+    obj.update_tag()
+    if old is not None and old.get(STACK_KEY) is not None and old.users == 0:
+        remove(old)
+
+
+def remove(so):
+    """Deletes a stack object of this file (never a library's, nor an override of one)."""
+    if so.library is not None or getattr(so, "override_library", None) is not None:
+        return
+    mesh = so.data
+    bpy.data.objects.remove(so)
+    if mesh is not None and mesh.users == 0 and mesh.library is None:
+        bpy.data.meshes.remove(mesh)
+
+
+def defer(obj, mods):
+    """Inside a depsgraph handler the depsgraph must not be evaluated again (Blender 3.4-5.1
+    crash there after a relations update): the modifiers' frame ranges are cleared instead, so
+    that the next evaluation passes their input through, where the next handler call reads
+    it. In a window a timer runs that update at once; in background mode the next update does
+    (or smooth_ffd.update)."""
+    from . import modifier_update
+    for m in mods:
+        modifier_update.set_frames(m, "Result", nodegroup.NEVER)
+    obj.update_tag()
+    counters["deferred"] += 1
+    if not bpy.app.background and threading.current_thread() is threading.main_thread() \
+            and not bpy.app.timers.is_registered(_deferred_update):
+        bpy.app.timers.register(_deferred_update, first_interval=0.0)
+    raise Deferred()
+
+
+def _deferred_update():
+    from . import handlers
+    handlers.update_all(bpy.context.scene)
+    return None
+
+
+def force_passthrough(obj, mods, depsgraph):
+    """Clears the frame ranges of these modifiers (they pass their input through) and
+    evaluates the depsgraph again, with the handlers muted. Only outside depsgraph handlers
+    (load, scripts, timers). The caller writes the ranges again (every modifier listed is
+    updated after this one in the same call)."""
+    from . import handlers, modifier_update
+    for m in mods:
+        modifier_update.set_frames(m, "Result", nodegroup.NEVER)
+    obj.update_tag()
+    counters["forced"] += 1
+    with handlers.muted():
+        depsgraph.update()
+
+
+def source(obj, mod, settings, st, stack, depsgraph, changed, frame_change, can_evaluate,
+           groups=True):
+    """The stack's geometry at mod's position as a meshio.SourceMesh (EVALUATED: from the
+    evaluated object; CHAIN: from the Smooth FFD right above), read again only when it may
+    have changed; the modifier's Stack Object follows it. groups: read every vertex group
+    (to carry them; a Python loop over the vertices), else only the Vertex Group setting's."""
+    from . import meshio, modifier_update
+    if nodegroup.layout(mod.node_group) not in nodegroup.STACK_LAYOUTS:
+        nodegroup.migrate(mod)   # a group of an older add-on: no Stack Object input yet
+    fp = settings_fingerprint(obj, stack)
+    groups = groups or bool(settings.vertex_group)
+    setting = (settings.vertex_group, settings.invert, groups)
+    same = st.source is not None and st.source_kind == stack.kind and st.stack_fp == fp \
+        and st.source_setting == setting
+    ro = modifier_update.result_object(obj, mod, create=False)
+    if stack.kind == CHAIN:
+        mesh, names, token, shown_by = _upper_output(obj, stack.upper, depsgraph)
+        set_stack_object(obj, mod, shown_by)
+        if same and token is not None and st.upper_key == token:
+            return st.source
+        mesh_fp = None
+    else:
+        mesh, mesh_fp = _evaluated_input(obj, mod, ro, st, stack, depsgraph, changed,
+                                         frame_change, can_evaluate, same)
+        if mesh is None:
+            return st.source
+        names, token = [g.name for g in obj.vertex_groups], None
+    group_index = names.index(settings.vertex_group) if settings.vertex_group in names else None
+    src = meshio.SourceMesh(mesh, group_index, settings.invert, names if groups else ())
+    counters["reads"] += 1
+    src.keep_normals_of(st.source)
+    if stack.kind == EVALUATED and nodegroup.layout(mod.node_group) in nodegroup.STACK_LAYOUTS:
+        so = stack_object(obj, mod, ro)
+        record(so, src.positions)
+        set_stack_object(obj, mod, so)
+    st.source, st.source_stamp, st.source_kind = src, None, stack.kind
+    st.stack_fp, st.upper_key, st.source_setting = fp, token, setting
+    st.mesh_fp = mesh_fp
+    return src
+
+
+def _upper_output(obj, upper, depsgraph):
+    """(mesh, vertex group names, key, object shown) of what the Smooth FFD modifier right
+    above shows on this frame: its bake, or its result (key: that result's input fingerprint;
+    None: read it every time)."""
+    from . import bake, handlers, inputs as inp, modifier_update
+    frame = modifier_update.scene_frame(depsgraph=depsgraph)
+    ro = modifier_update.result_object(obj, upper, create=False)
+    names = [g.name for g in ro.vertex_groups] if ro is not None else []
+    if handlers.in_bake(upper, frame):
+        host = bake.bake_object(upper)
+        if host is not None:
+            return host.evaluated_get(depsgraph).data, names, None, host
+    st = modifier_update.state_of(obj, upper)
+    if st is not None and st.deferred:
+        raise Deferred()       # its range and this one's are cleared: both read next time
+    lo, hi = modifier_update.get_frames(upper, "Result")
+    if st is None or st.last_key is None or not lo <= frame < hi:
+        raise inp.SmoothFFDError(f"the Smooth FFD modifier above ({upper.name!r}) has no "
+                                 f"result for this frame, so neither has this one")
+    return ro.data, names, st.last_key, ro
+
+
+def _evaluated_input(obj, mod, ro, st, stack, depsgraph, changed, frame_change,
+                     can_evaluate, same):
+    """(mesh, its fingerprint) of the evaluated object where this modifier and every Smooth
+    FFD below it passed their input through: the stack's geometry here; (None, None) when the
+    last reading still holds. Where the evaluation showed a result (the group found the input
+    at the Stack Object's vertices) and something its check does not see may have changed
+    (`triggered`: the mesh's other data, settings above), the input is read through one more
+    evaluation (force_passthrough, outside handlers) or on the next one (defer)."""
+    from . import handlers, inputs as inp, modifier_update
+    frame = modifier_update.scene_frame(depsgraph=depsgraph)
+    if any(handlers.in_bake(m, frame) for m in stack.sffd_below):
+        raise inp.SmoothFFDError("a Smooth FFD modifier below is baked on this frame: the "
+                                 "stack's geometry here is not shown (clear its bake)")
+    mods = [mod] + stack.sffd_below
+    results = [r.data for r in (modifier_update.result_object(obj, m, create=False)
+                                for m in mods) if r is not None]
+    # A Smooth FFD above wrote since the evaluation: the stack here is not what was evaluated.
+    stale = any((obj.as_pointer(), m.name) in _wrote for m in stack.above)
+    mesh = obj.evaluated_get(depsgraph).data
+    if not stale and not shows_result(mesh, results):
+        return mesh, mesh_fingerprint(obj.data)     # the input, passed through
+    if not stale and same and not _needs_reading(obj, st, stack, changed, frame_change):
+        return None, None
+    if not can_evaluate:
+        defer(obj, mods)
+    force_passthrough(obj, mods, depsgraph)
+    for m in stack.above:
+        _wrote.discard((obj.as_pointer(), m.name))
+    mesh = obj.evaluated_get(depsgraph).data
+    if shows_result(mesh, results):
+        raise inp.SmoothFFDError("the stack's geometry at this modifier could not be read "
+                                 "(a result is still shown)")
+    return mesh, mesh_fingerprint(obj.data)
+
+
+def _needs_reading(obj, st, stack, changed, frame_change):
+    """With a result shown (the input has the vertices it was computed from): whether
+    something else the input holds may have changed since it was read: on a new frame, a stack
+    that changes with time; on an edit, the mesh's other data (mesh_fingerprint), or IDs that
+    modifiers above take UV maps, weights or normals from."""
+    if frame_change:
+        # A new frame with a stack that changes with time finds no result (it belongs to its
+        # own frame only); a result shown here is for this frame, or for a static stack.
+        return False
+    if changed is None:
+        return True
+    geometry, transform = changed
+    if obj.data in geometry and mesh_fingerprint(obj.data) != st.mesh_fp:
+        return True
+    return any(m.type in NON_POSITIONAL_TYPES and set(referenced_ids(m)) & (geometry | transform)
+               for m in stack.above)

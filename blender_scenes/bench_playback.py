@@ -1,0 +1,140 @@
+"""Playback of a rigged character (issue 18, item 6): Armature + Smooth FFD at viewport level 3
+against Armature + Lattice + Subdivision Surface at the same density, in the same run. Prints
+frames per second, asserts nothing.
+
+    blender -b --factory-startup --python blender_scenes/bench_playback.py [-- ROUNDS [SUBDIVISIONS]]
+    ~/.cache/smoothffd/venv-bpy-5.0/bin/python blender_scenes/bench_playback.py [ROUNDS [SUBDIVISIONS]]
+
+The character (blender_scenes/character.py, SUBDIVISIONS=3: 5,760 quads) waves over frames
+1-6; a 4x4x4 B-spline lattice boxes it. Playback = scene.frame_set(f) for f = 1..6, then the
+evaluated mesh read (Blender 4.x/5.x evaluate a final Subdivision Surface when the mesh is
+first accessed, so that counts for both stacks). The two stacks run on two objects, one shown
+(hide_viewport) at a time, interleaved round by round so that both see the same machine load;
+each round's first frame (the switch) is not timed. Smooth FFD runs with its handlers, as in
+the viewport (CPU backend; 3.4-4.4 shade the dense result from its geometry, 4.5+ writes exact
+normals). The Subdivision Surface level is the one whose triangle count is closest to Smooth
+FFD's; the other level is timed too.
+"""
+import os
+import sys
+import time
+
+import bpy
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+sys.path[:0] = [os.path.join(ROOT, "addon"), os.path.join(ROOT, "python"), HERE]
+import smooth_ffd  # noqa: E402
+from smooth_ffd import modifier_update, stack_input  # noqa: E402
+import character as C  # noqa: E402
+
+
+def argv():
+    a = sys.argv
+    if "--" in a:
+        return a[a.index("--") + 1:]
+    return [] if "--python" in a else a[1:]
+
+
+ARGS = argv()
+ROUNDS = int(ARGS[0]) if ARGS else 5
+SUBDIVISIONS = int(ARGS[1]) if len(ARGS) > 1 else 3
+LEVEL = 3
+FRAMES = list(range(C.FRAMES[0], C.FRAMES[1] + 1))
+
+
+def triangles(obj):
+    dg = bpy.context.evaluated_depsgraph_get()
+    me = obj.evaluated_get(dg).data
+    return len(me.loops) - 2 * len(me.polygons)
+
+
+def show_only(obj, objects):
+    for o in objects:
+        o.hide_viewport = o is not obj
+    bpy.context.view_layer.update()
+
+
+def play(obj, sc):
+    """ms per frame for one pass over FRAMES (the first frame, a switch, untimed)."""
+    out = []
+    sc.frame_set(FRAMES[-1])
+    for f in FRAMES:
+        t = time.perf_counter()
+        sc.frame_set(f)
+        len(obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data.vertices)
+        out.append(1e3 * (time.perf_counter() - t))
+    return out
+
+
+def main():
+    smooth_ffd.register()
+    for o in list(bpy.data.objects):
+        bpy.data.objects.remove(o)
+    sc = bpy.context.scene
+    rig = C.armature("rig")
+    sffd = C.character_object(SUBDIVISIONS, "smooth_ffd", rig)
+    lat = C.lattice_around([sffd])
+    mod = smooth_ffd.add_smooth_ffd(sffd, lat, viewport_level=LEVEL, backend="cpu")
+    subs = {}
+    for level in (1, 2):
+        obj = C.character_object(SUBDIVISIONS, f"subsurf{level}", rig)
+        obj.modifiers.new("Lattice", 'LATTICE').object = lat
+        obj.modifiers.new("Subsurf", 'SUBSURF').levels = level
+        subs[level] = obj
+    objects = [sffd] + list(subs.values())
+    counts = {}
+    for obj in objects:
+        show_only(obj, objects)
+        sc.frame_set(FRAMES[0])
+        counts[obj.name] = triangles(obj)
+    target = counts["smooth_ffd"]
+    closest = min(subs, key=lambda lv: abs(counts[f"subsurf{lv}"] - target))
+    print(f"Blender {bpy.app.version_string}, {os.cpu_count()} CPUs; character "
+          f"{len(sffd.data.polygons)} quads, armature 3 bones, lattice 4x4x4 B-spline, frames "
+          f"{FRAMES[0]}-{FRAMES[-1]}, {ROUNDS} rounds interleaved; load average "
+          f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    times = {o.name: [] for o in objects}
+    reads0, plans0 = dict(stack_input.counters), modifier_update.plans_built[0]
+    timings = []
+    for r in range(ROUNDS):
+        for obj in objects:
+            show_only(obj, objects)
+            ms = play(obj, sc)
+            times[obj.name] += ms[1:]
+            if obj is sffd:
+                timings.append(modifier_update.last_timing(sffd, mod))
+    reads = {k: stack_input.counters[k] - reads0[k] for k in reads0}
+    frames_sffd = ROUNDS * (len(FRAMES) - 1)
+    print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}; "
+          f"median ms per frame over {frames_sffd} frames each")
+    print(f"{'':34s} {'triangles':>10s} {'ms/frame':>9s} {'fps':>6s}")
+    rows = [("Armature + Smooth FFD level 3", "smooth_ffd")] + \
+        [(f"Armature + Lattice + Subsurf {lv}" + (" (closest)" if lv == closest else ""),
+          f"subsurf{lv}") for lv in subs]
+    med = {}
+    for label, name in rows:
+        m = float(np.median(times[name]))
+        med[name] = m
+        print(f"{label:34s} {counts[name]:10d} {m:9.1f} {1e3 / m:6.1f}   "
+              f"(min {min(times[name]):.1f}, max {max(times[name]):.1f})")
+    lt = [t for t in timings if t]
+    split = {k: float(np.median([t[k] for t in lt])) for k in
+             ("deform_ms", "write_ms", "mesh_write_ms", "carry_ms", "normals_ms")} if lt else {}
+    print(f"Smooth FFD per frame (median of the rounds' last frames): plan + deform "
+          f"{split.get('deform_ms', 0):.1f} ms, write {split.get('write_ms', 0):.1f} ms "
+          f"(mesh {split.get('mesh_write_ms', 0):.1f}, carry {split.get('carry_ms', 0):.1f}, "
+          f"normals {split.get('normals_ms', 0):.1f}); stack readings {reads['reads']} for "
+          f"{frames_sffd + ROUNDS} frames shown, forced evaluations {reads['forced']}, deferred "
+          f"{reads['deferred']}, plans built {modifier_update.plans_built[0] - plans0}")
+    m0, m1 = med[f"subsurf{closest}"], med["smooth_ffd"]
+    print(f"fps Smooth FFD / Lattice + Subsurf {closest}: {m0 / m1:.2f}x "
+          f"({1e3 / m1:.1f} vs {1e3 / m0:.1f} fps; triangles {target} vs "
+          f"{counts[f'subsurf{closest}']})")
+    sys.stdout.flush()
+
+
+main()
+if not bpy.app.binary_path:   # bpy 4.5 can hang in exit() (tests/blender/sffd_testlib.py)
+    os._exit(0)

@@ -88,6 +88,9 @@ def run_mesh(kind, level):
             own = np.cross(c - b, a - b)
             if np.linalg.norm(own) > 0 and np.dot(unit(own), unit(in_normals[li])) < TURN_COS:
                 far_faces.add(poly.index)
+    # and the faces around them (the turned corners' vertices and the patches beside them).
+    far_verts = {int(v) for f in far_faces for v in src.polygons[f].vertices}
+    far_faces |= {p.index for p in src.polygons if far_verts.intersection(p.vertices)}
     key_in = {(int(f), int(v)): c for c, (f, v) in enumerate(zip(poly_of_loop, in_verts))}
 
     out = T.evaluated_mesh(obj)

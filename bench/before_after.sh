@@ -6,7 +6,8 @@
 #   git archive HEAD     native python/smoothffd CMakeLists.txt scripts bench tests | tar -x -C ab_new
 #   run(command="PART=tests bash bench/before_after.sh", carry=[".carry", "ab_ref", "ab_new"])
 #   run(command="PART=bench bash bench/before_after.sh", carry=[".carry", "ab_ref", "ab_new"])
-# PART=tests: the GPU tests in both trees, the whole non-Blender suite and compute-sanitizer's
+# PART=gpu: the GPU tests in both trees and memcheck in ab_new (fits a 10-minute call on a
+#   fresh machine). PART=tests: the GPU tests in both trees, the whole non-Blender suite and compute-sanitizer's
 #   memcheck in ab_new, and bench/bench_deliver.py (the frame into numpy) in ab_new.
 # PART=bench: bench/bench_gpu.py (every case: W1 at L = 4..16, the 1M mesh, Table 5, the CPU)
 #   in both trees, one after the other. ARCHS (default 90-real: the H100's kernels alone).
@@ -25,25 +26,28 @@ for tree in ab_ref ab_new; do
       bash scripts/build.sh > "$OUT/build_$tree.log" 2>&1; echo "$tree build rc=$?" ) &
 done
 wait
-gpu_tests="tests/test_cuda.py tests/test_render_vertices.py tests/test_compact.py tests/test_bench_native.py"
-if [ "${PART:-tests}" = tests ]; then
+gpu_tests="tests/test_cuda.py tests/test_render_vertices.py tests/test_compact.py tests/test_bench_native.py tests/test_lattice_weights.py"
+if [ "${PART:-tests}" = tests ] || [ "${PART:-tests}" = gpu ]; then
   for tree in ab_ref ab_new; do
     have=$(cd "$tree" && for f in $gpu_tests; do [ -f "$f" ] && echo "$f"; done)
     echo "== GPU tests, $tree"
     ( cd "$tree" && PYTHONPATH="$PWD/python" timeout 200 python3 -m pytest -q $have 2>&1 | tail -4 ) \
       | tee "$OUT/gpu_tests_$tree.log"
   done
-  echo "== whole non-Blender suite, ab_new"
-  ( cd ab_new && PYTHONPATH="$PWD/python" timeout 220 python3 -m pytest -q tests \
-      --ignore=tests/test_blender.py --ignore=tests/blender 2>&1 | tail -12 ) | tee "$OUT/suite_ab_new.log"
   echo "== memcheck, ab_new"
   ( cd ab_new && PYTHONPATH="$PWD/python" SMOOTHFFD_SANITIZER=1 timeout 120 compute-sanitizer --tool memcheck \
       --error-exitcode 9 python3 -m pytest -q tests/test_cuda.py -k sanitizer_subset 2>&1 | tail -3 ) \
       | tee "$OUT/memcheck_ab_new.log"
+fi
+if [ "${PART:-tests}" = tests ]; then
+  echo "== whole non-Blender suite, ab_new"
+  ( cd ab_new && PYTHONPATH="$PWD/python" timeout 220 python3 -m pytest -q tests \
+      --ignore=tests/test_blender.py --ignore=tests/blender 2>&1 | tail -12 ) | tee "$OUT/suite_ab_new.log"
   echo "== bench_deliver, ab_new"
   ( cd ab_new && PYTHONPATH="$PWD/python" timeout 120 python3 bench/bench_deliver.py --levels 4 10 16 --repeats 11 ) \
       | tee "$OUT/deliver_ab_new.txt"
-else
+fi
+if [ "${PART:-tests}" = bench ]; then
   for tree in ab_ref ab_new; do
     echo "== bench_gpu.py, $tree"
     ( cd "$tree" && PYTHONPATH="$PWD/python" timeout 260 python3 bench/bench_gpu.py --iters ${ITERS:-100} \

@@ -105,7 +105,8 @@ class Target:
         rest = lat.rest_points.reshape(-1, 3)
         if isinstance(lat, self.kinds[1]):  # lattice space -> object space
             m = lat.lattice_to_object
-            rest = rest @ m[:3, :3].T + m[:3, 3]
+            with np.errstate(all="ignore"):  # rest points near 1e308 overflow: not evaluated below
+                rest = rest @ m[:3, :3].T + m[:3, 3]
         weights = getattr(lat, "point_weights", None)
         weights = np.zeros(0) if weights is None else weights
         if (np.abs(rest).max(initial=0) < 1e150 and np.abs(values).max(initial=0) < 1e150

@@ -195,7 +195,7 @@ def _core_corner_normals(mesh, obj, lat):
     lat at LEVEL: an independent run of the same computation."""
     dg = bpy.context.evaluated_depsgraph_get()
     source = modifier_update.meshio.SourceMesh(mesh)
-    rest, pts, interp, _shape, _key = modifier_update.latticeio.read_lattice(lat, dg)
+    rest, pts, interp, _shape, _key, _weights = modifier_update.latticeio.read_lattice(lat, dg)
     l2o = modifier_update.inputs.lattice_to_object(
         modifier_update.latticeio.world_matrix(obj, dg),
         modifier_update.latticeio.world_matrix(lat, dg))

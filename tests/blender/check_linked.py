@@ -32,7 +32,6 @@ import hashlib
 import json
 import os
 import shutil
-import subprocess
 import sys
 import tempfile
 
@@ -44,7 +43,6 @@ import sffd_testlib as T  # noqa: E402
 from sffd_testlib import (smooth_ffd, compat, handlers, linked, modifier_update,  # noqa: E402
                           nodegroup)
 
-HERE = os.path.dirname(os.path.abspath(__file__))
 VIEWPORT, RENDER = 1, 2
 FRAMES = (1, 2, 3, 4)
 SAVED_FRAME = 2
@@ -322,28 +320,7 @@ def check_frames(what, sc, char, ref, lat, lib):
 
 def without_addon(blend, frames, obj_name):
     """noaddon_eval.py on `blend` in a fresh Blender that never loads the add-on."""
-    tmp = tempfile.mkdtemp()
-    spec = {"blend": blend, "out": os.path.join(tmp, "out.npz"), "frames": list(frames),
-            "objects": [obj_name], "renders": []}
-    spec_path = os.path.join(tmp, "spec.json")
-    json.dump(spec, open(spec_path, "w"))
-    env = dict(os.environ)
-    env.pop("SFFD_TEST_ADDON_ZIP", None)
-    profile = os.path.join(tmp, "profile")
-    env.update({"BLENDER_USER_RESOURCES": profile, "BLENDER_USER_SCRIPTS": profile + "/scripts",
-                "BLENDER_USER_CONFIG": profile + "/config",
-                "BLENDER_USER_EXTENSIONS": profile + "/extensions"})
-    script = os.path.join(HERE, "noaddon_eval.py")
-    if bpy.app.binary_path:
-        cmd = [bpy.app.binary_path, "-b", "--factory-startup", blend, "--python-exit-code", "1",
-               "--python", script, "--", spec_path]
-    else:
-        cmd = [sys.executable, script, spec_path]
-    proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=600)
-    if proc.returncode != 0 or not os.path.exists(spec["out"]):
-        print(proc.stdout[-3000:], proc.stderr[-3000:])
-        raise RuntimeError(f"no-add-on Blender failed (rc {proc.returncode})")
-    data = np.load(spec["out"])
+    data = T.run_without_addon(blend, frames, [obj_name])
     T.check("no-add-on Blender: the add-on was not loaded",
             json.loads(str(data["addon_modules"])) == [], str(data["addon_modules"]))
     return data

@@ -19,7 +19,6 @@
 """
 import json
 import os
-import subprocess
 import sys
 import tempfile
 import threading
@@ -31,7 +30,6 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --p
 import sffd_testlib as T  # noqa: E402
 from sffd_testlib import smooth_ffd, compat, modifier_update, handlers, nodegroup  # noqa: E402
 
-HERE = os.path.dirname(os.path.abspath(__file__))
 TOL = 1e-5
 VIEWPORT, RENDER = 1, 2
 
@@ -164,28 +162,7 @@ def same(name, got, exp, nrm_tol=1e-5):
 def without_addon(blend, frames=(), objects=(), renders=()):
     """Runs noaddon_eval.py on `blend` in a fresh Blender of this version that does not
     load the add-on (empty user profile; 3.4: --factory-startup); returns its .npz."""
-    tmp = tempfile.mkdtemp()
-    spec = {"blend": blend, "out": os.path.join(tmp, "out.npz"), "frames": list(frames),
-            "objects": list(objects), "renders": list(renders)}
-    spec_path = os.path.join(tmp, "spec.json")
-    json.dump(spec, open(spec_path, "w"))
-    env = dict(os.environ)
-    env.pop("SFFD_TEST_ADDON_ZIP", None)
-    profile = os.path.join(tmp, "profile")
-    env.update({"BLENDER_USER_RESOURCES": profile, "BLENDER_USER_SCRIPTS": profile + "/scripts",
-                "BLENDER_USER_CONFIG": profile + "/config",
-                "BLENDER_USER_EXTENSIONS": profile + "/extensions"})
-    script = os.path.join(HERE, "noaddon_eval.py")
-    if bpy.app.binary_path:
-        cmd = [bpy.app.binary_path, "-b", "--factory-startup", blend, "--python-exit-code", "1",
-               "--python", script, "--", spec_path]
-    else:
-        cmd = [sys.executable, script, spec_path]
-    proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=600)
-    if proc.returncode != 0 or not os.path.exists(spec["out"]):
-        print(proc.stdout[-3000:], proc.stderr[-3000:])
-        raise RuntimeError(f"no-add-on Blender failed (rc {proc.returncode})")
-    data = np.load(spec["out"])
+    data = T.run_without_addon(blend, frames, objects, renders)
     T.check("no-add-on Blender: the add-on was not loaded",
             json.loads(str(data["addon_modules"])) == [] and
             json.loads(str(data["addon_handlers"])) == [],

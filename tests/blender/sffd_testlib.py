@@ -270,3 +270,34 @@ def patches(obj, mod):
     planes. Each patch is tessellated into level^2 output triangles."""
     t = modifier_update.last_timing(obj, mod)
     return int(t["stats"]["patches"]) if t else -1
+
+
+def run_without_addon(blend, frames=(), objects=(), renders=()):
+    """Runs noaddon_eval.py on `blend` in a fresh Blender of this version that does not load
+    the add-on (empty user profile; 3.4: --factory-startup); returns its .npz."""
+    import json
+    import subprocess
+    import tempfile
+    tmp = tempfile.mkdtemp()
+    spec = {"blend": blend, "out": os.path.join(tmp, "out.npz"), "frames": list(frames),
+            "objects": list(objects), "renders": list(renders)}
+    spec_path = os.path.join(tmp, "spec.json")
+    with open(spec_path, "w") as f:
+        json.dump(spec, f)
+    env = dict(os.environ)
+    env.pop("SFFD_TEST_ADDON_ZIP", None)
+    profile = os.path.join(tmp, "profile")
+    env.update({"BLENDER_USER_RESOURCES": profile, "BLENDER_USER_SCRIPTS": profile + "/scripts",
+                "BLENDER_USER_CONFIG": profile + "/config",
+                "BLENDER_USER_EXTENSIONS": profile + "/extensions"})
+    script = os.path.join(os.path.dirname(os.path.abspath(__file__)), "noaddon_eval.py")
+    if bpy.app.binary_path:
+        cmd = [bpy.app.binary_path, "-b", "--factory-startup", blend, "--python-exit-code", "1",
+               "--python", script, "--", spec_path]
+    else:
+        cmd = [sys.executable, script, spec_path]
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=600)
+    if proc.returncode != 0 or not os.path.exists(spec["out"]):
+        print(proc.stdout[-3000:], proc.stderr[-3000:])
+        raise RuntimeError(f"no-add-on Blender failed (rc {proc.returncode})")
+    return np.load(spec["out"])

@@ -33,6 +33,9 @@ SFFD_ISA_BEGIN  // per-frame part: one copy per ISA (core/isa.hpp)
 
 namespace {
 
+// Plans up to this many samples gather their columns with int32 offsets (9 floats a sample).
+constexpr int kGatherSamples = 0x7fffffff / 9;
+
 // cofactor_apply (core/hd.hpp) on lanes: n' = n.x (J2 x J3) + n.y (J3 x J1) + n.z (J1 x J2),
 // Jc the columns of the row-major J.
 void cofactor_apply_lanes(const Lanes J[9], const Lanes n[3], Lanes out[3]) {
@@ -52,22 +55,29 @@ void cofactor_apply_lanes(const Lanes J[9], const Lanes n[3], Lanes out[3]) {
 template <bool kNormals>
 void columns_on_lanes(const PlanView& pv, const FrameView& fv, const int* s, const float* bary,
                       int stride, const int* column, const V3 rn[3], Lanes x[3], Lanes n[3]) {
+  // Gathered (lanes.hpp) while the element offsets 9 s fit in int32; one load a lane beyond
+  // (plans of over 238 M samples). The same floats either way.
   Lanes J[9];
-  for (int l = 0; l < kLanes; ++l) {
-    if (s[l] >= 0) {
-      for (int r = 0; r < 3; ++r) x[r].set(l, fv.sample_value[3 * (long long)s[l] + r]);
+  if (pv.samples <= kGatherSamples) {
+    int o3[kLanes], o9[kLanes];
+    for (int l = 0; l < kLanes; ++l) {
+      o3[l] = s[l] >= 0 ? 3 * s[l] : -1;
+      o9[l] = s[l] >= 0 ? 9 * s[l] : -1;
+    }
+    for (int r = 0; r < 3; ++r) x[r] = gather_lanes(fv.sample_value + r, o3, 0.0f);
+    if (kNormals)
+      for (int r = 0; r < 9; ++r) J[r] = gather_lanes(fv.sample_jacobian + r, o9, r % 4 == 0 ? 1.0f : 0.0f);
+  } else {
+    for (int l = 0; l < kLanes; ++l) {
+      const long long q = s[l];
+      for (int r = 0; r < 3; ++r) x[r].set(l, q >= 0 ? fv.sample_value[3 * q + r] : 0.0f);
       if (kNormals)
-        for (int r = 0; r < 9; ++r) J[r].set(l, fv.sample_jacobian[9 * (long long)s[l] + r]);
-    } else {
-      for (int r = 0; r < 3; ++r) x[r].set(l, 0.0f);
-      if (kNormals)
-        for (int r = 0; r < 9; ++r) J[r].set(l, r % 4 == 0 ? 1.0f : 0.0f);
+        for (int r = 0; r < 9; ++r) J[r].set(l, q >= 0 ? fv.sample_jacobian[9 * q + r] : r % 4 == 0 ? 1.0f : 0.0f);
     }
   }
   if (!kNormals) return;
   Lanes b[3], n0[3], c[3];
-  for (int i = 0; i < 3; ++i)
-    for (int l = 0; l < kLanes; ++l) b[i].set(l, bary[(size_t)i * stride + l]);
+  for (int i = 0; i < 3; ++i) b[i] = load_lanes(bary + (size_t)i * stride);
   n0[0] = b[0] * rn[0].x + b[1] * rn[1].x + b[2] * rn[2].x;
   n0[1] = b[0] * rn[0].y + b[1] * rn[1].y + b[2] * rn[2].y;
   n0[2] = b[0] * rn[0].z + b[1] * rn[1].z + b[2] * rn[2].z;
@@ -78,6 +88,7 @@ void columns_on_lanes(const PlanView& pv, const FrameView& fv, const int* s, con
   Lanes l2b = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
   Lanes inv2 = Lanes(1.0f) / sqrt(l2b);
   for (int r = 0; r < 3; ++r) n[r] = inv2 * n[r];
+  if (all_within(l2, 1e-30f, 3.0e38f) && all_within(l2b, 1e-30f, 3.0e38f)) return;
   for (int l = 0; l < kLanes; ++l) {
     if (s[l] < 0 || (l2[l] > 1e-30f && l2[l] <= 3.0e38f && l2b[l] > 1e-30f && l2b[l] <= 3.0e38f)) continue;
     V3 v = deformed_column_normal(pv, column[l], rn, fv.sample_jacobian + 9 * (long long)s[l]);
@@ -104,8 +115,7 @@ void fit_patch_impl(const PlanView& pv, const FrameView& fv, const FitColumns& f
     }
     Lanes x[3], n[3];
     columns_on_lanes<kNormals>(pv, fv, s, fc.bary.data() + k0, fc.padded, column, rn, x, n);
-    Lanes m;
-    for (int l = 0; l < kLanes; ++l) m.set(l, fc.weight[k0 + l]);
+    const Lanes m = load_lanes(fc.weight.data() + k0);
     for (int r = 0; r < 3; ++r) gc[r] += m * x[r];
     if (kNormals)
       for (int r = 0; r < 3; ++r) nc[r] += m * n[r];
@@ -121,9 +131,7 @@ void fit_patch_impl(const PlanView& pv, const FrameView& fv, const FitColumns& f
     columns_on_lanes<kNormals>(pv, fv, s, fc.cbary.data() + c0, 16, column, rn, x, n);
     for (int l = 0; l < kLanes && c0 + l < 9; ++l) {
       const float* mt = fc.crows.data() + 16 * (c0 + l);
-      Lanes m[2];
-      for (int h = 0; h < 2; ++h)
-        for (int i = 0; i < kLanes; ++i) m[h].set(i, mt[h * kLanes + i]);
+      const Lanes m[2] = {load_lanes(mt), load_lanes(mt + kLanes)};
       for (int h = 0; h < 2; ++h)
         for (int r = 0; r < 3; ++r) {
           ag[r][h] += m[h] * x[r][l];

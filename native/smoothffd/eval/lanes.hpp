@@ -68,6 +68,43 @@ inline Lanes sqrt(Lanes a) {
 #endif
 }
 
+// kLanes consecutive floats from p (no alignment needed).
+inline Lanes load_lanes(const float* p) {
+  Lanes a;
+  for (int i = 0; i < kLanes; ++i) a.set(i, p[i]);  // one unaligned vector load
+  return a;
+}
+
+// Lane l = base[idx[l]] where idx[l] >= 0, else `fill`: the values of kLanes scattered
+// samples, assembled in registers (a lane-by-lane store and one vector load stalls on store
+// forwarding; AVX2's gather was slower still on the development machine's AMD EPYC).
+inline Lanes gather_lanes(const float* base, const int* idx, float fill) {
+  float x[kLanes];
+  for (int i = 0; i < kLanes; ++i) x[i] = idx[i] >= 0 ? base[idx[i]] : fill;
+#if defined(__AVX__) && (defined(__GNUC__) || defined(__clang__))
+  static_assert(kLanes == 8, "one AVX register");
+  return Lanes((Lanes::V)_mm256_setr_ps(x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7]));
+#else
+  Lanes a;
+  for (int i = 0; i < kLanes; ++i) a.set(i, x[i]);
+  return a;
+#endif
+}
+
+// Whether lo < a <= hi in every lane (NaN in none).
+inline bool all_within(Lanes a, float lo, float hi) {
+#if defined(__AVX__) && (defined(__GNUC__) || defined(__clang__))
+  const __m256 v = (__m256)a.v;
+  const __m256 ok = _mm256_and_ps(_mm256_cmp_ps(v, _mm256_set1_ps(lo), _CMP_GT_OQ),
+                                  _mm256_cmp_ps(v, _mm256_set1_ps(hi), _CMP_LE_OQ));
+  return _mm256_movemask_ps(ok) == 0xff;
+#else
+  for (int i = 0; i < kLanes; ++i)
+    if (!(a[i] > lo && a[i] <= hi)) return false;
+  return true;
+#endif
+}
+
 // Sum of the lanes, in lane order.
 inline float sum(Lanes a) {
   float s = a[0];

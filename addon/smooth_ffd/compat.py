@@ -343,6 +343,15 @@ def write_custom_normals(mesh, normals, domain='CORNER'):
     return "custom_set"
 
 
+def remove_custom_normals(mesh):
+    """4.5+: drops the custom_normal attribute, so that Blender shades from the geometry
+    (before 4.5 a result with custom normals is rebuilt instead: modifier_update)."""
+    if HAS_FREE_NORMAL_ATTRIBUTE:
+        attr = mesh.attributes.get("custom_normal")
+        if attr is not None:
+            mesh.attributes.remove(attr)
+
+
 def write_vertex_normals(mesh, normals):
     """normals: (V, 3) float32 unit vectors, one per vertex, for a result whose normals never
     split. 4.5+: the point-domain custom_normal attribute (a memcpy); before,

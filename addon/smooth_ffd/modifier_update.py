@@ -40,6 +40,8 @@ class _State:
         self.mesh_fp = None       # stack_input.mesh_fingerprint of the object's mesh when read
         self.deferred = False     # waiting for the next evaluation to read the stack
         self.lattice_gone = None  # a deleted lattice's name (handlers.release_deleted_lattices)
+        self.exact_key = None     # the inputs' key (with exact normals) of the last result
+        self.changed_at = -1e9    # when a result for new inputs was last computed (live editing)
 
 
 _states = {}
@@ -316,7 +318,12 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
         settings, level, backend, exact, lattice_data, l2o, source, key = gathered
         st.lattice_gone = None
         st.deferred = False
-        key = inputs.digest(key, groups)
+        key = exact_key = inputs.digest(key, groups)
+        now = time.perf_counter()
+        if _positions_while_changing(st, exact_key, exact, render or force, settings, now):
+            exact = False
+            key = inputs.digest(key, "positions only")
+            _schedule_settle(now)
         frame = scene_frame(scene, depsgraph)
         frames = result_frames(obj, settings.lattice, frame, stack)
         note = stack.note()
@@ -358,6 +365,10 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
         normals = times.pop("normals")
         t2 = time.perf_counter()
         st.last_key = key
+        if not (render or force):   # live editing follows the viewport's results
+            if exact_key != st.exact_key:
+                st.changed_at = now
+            st.exact_key = exact_key
         used = res.stats.get("device", backend) if isinstance(res.stats, dict) else backend
         tail = (f"{len(res.triangles)} tris, deform {1e3 * (t1 - t0):.1f} ms, "
                 f"write {1e3 * (t2 - t1):.1f} ms ({normals} normals)")
@@ -388,6 +399,49 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
             message += f" (the lattice object {st.lattice_gone!r} was deleted)"
         _fail(obj, mod, st, message)
     return False
+
+
+# Live editing (4.5+ viewport). While a result keeps changing (results for new inputs less
+# than SETTLE seconds apart: a lattice point dragged, an animation playing), the core computes
+# positions only and Blender shades the dense mesh from its own geometry, smooth with the
+# result's sharp edges, as the 3.4-4.4 viewport always does: well under half the core's time.
+# SETTLE seconds after the last change a timer brings the exact normals. Never for render,
+# Apply, Bake, forced updates or Exact Normals, nor in background mode (no timers run there:
+# scripts and farms get exact results); LIVE True/False forces it on/off (tests).
+LIVE = None
+SETTLE = 0.4
+_settle_after = [0.0]   # perf_counter time after which the settle timer updates
+
+
+def _live():
+    return (not bpy.app.background) if LIVE is None else LIVE
+
+
+def _positions_while_changing(st, exact_key, exact, render, settings, now):
+    """Whether this update computes positions only (see LIVE): new inputs within SETTLE of
+    the last change, or the same inputs as a positions-only result of less than SETTLE ago
+    (the post handler after an early computation: it stays until the settle timer)."""
+    return (exact and not render and not settings.exact and compat.CHEAP_EXACT_NORMALS
+            and _live() and now - st.changed_at < SETTLE
+            and (exact_key != st.exact_key or st.last_key != exact_key))
+
+
+def _schedule_settle(now):
+    _settle_after[0] = now + SETTLE
+    if not bpy.app.background and not bpy.app.timers.is_registered(settle):
+        bpy.app.timers.register(settle, first_interval=SETTLE)
+
+
+def settle():
+    """The timer after live editing: once nothing changed for SETTLE seconds, updates every
+    modifier, which computes the exact normals of the results computed without them (their
+    key differs); else runs again when that time has come."""
+    wait = _settle_after[0] - time.perf_counter()
+    if wait > 0:
+        return wait
+    from . import handlers
+    handlers.update_all(bpy.context.scene)
+    return None
 
 
 # The core's output layout (docs/api.md), per plan (_layout); "compact" or "corners" forces
@@ -606,8 +660,10 @@ def _write_result(obj, ro, res, source, topology_token, exact, st, groups=True):
     same = (mesh.get(OUTPUT_KEY) == st.output[1] and mesh.get(TOPOLOGY_KEY) is not None
             and len(mesh.vertices) == len(res.positions)
             and len(mesh.polygons) == len(res.triangles))
-    # Going back from exact to fast on 3.4-4.4 needs the custom-normal layer gone: rebuild.
-    rebuild = not same or (mesh.get(NORMALS_KEY) == "exact" and mode == "fast")
+    # Going back from exact to fast needs the custom normals gone: on 3.4-4.4 a rebuild, on
+    # 4.5+ the attribute removed (below).
+    rebuild = not same or (mesh.get(NORMALS_KEY) == "exact" and mode == "fast"
+                           and not compat.HAS_FREE_NORMAL_ATTRIBUTE)
     if rebuild:
         meshio.write_topology(mesh, res, source, _materials(obj))
         mesh[OUTPUT_KEY] = st.output[1]
@@ -637,7 +693,9 @@ def _write_result(obj, ro, res, source, topology_token, exact, st, groups=True):
             st.scratch = (st.plan_key, {"splits": plan.render_vertex_count > plan.output_vertices})
         path = meshio.write_normals(mesh, res, st.scratch[1])
     else:
-        path = "from geometry"   # 3.4-4.4 viewport: Blender's own normals of the dense mesh
+        # 3.4-4.4 viewport, live editing on 4.5+: Blender's own normals of the dense mesh.
+        compat.remove_custom_normals(mesh)
+        path = "from geometry"
     mesh[NORMALS_KEY] = mode
     t2 = time.perf_counter()
     mesh.update()

@@ -262,6 +262,96 @@ def test_positions_only_path():
     T.check("apply: custom normals on the applied mesh", obj.data.has_custom_normals)
 
 
+def test_live_editing():
+    """4.5+ viewport (modifier_update.LIVE, forced on here: background mode runs no timers):
+    while the result keeps changing (results less than SETTLE apart) positions only and
+    Blender's own normals; after SETTLE the settle timer's update brings the exact normals,
+    equal to those of an exact update of the same inputs. Exact Normals, render and LIVE off
+    stay exact; an update that changes nothing computes nothing."""
+    if not compat.CHEAP_EXACT_NORMALS:
+        T.check("live editing: 3.4-4.4 viewport is positions-only anyway", True)
+        return
+    obj, lat, ref, mod = scene("suzanne")
+    st = modifier_update.state_of(obj, mod)
+    ro = modifier_update.result_object(obj, mod, create=False)
+    live, settle = modifier_update.LIVE, modifier_update.SETTLE
+    modifier_update.LIVE, modifier_update.SETTLE = True, 0.5
+
+    def calls(fn):
+        before = dict(modifier_update.deform_calls)
+        fn()
+        return {k: modifier_update.deform_calls[k] - before[k] for k in before}
+
+    def move(dz):
+        def fn():
+            lat.data.points[4].co_deform.z += dz
+            T.update()
+        return fn
+
+    def normals_attribute():
+        a = ro.data.attributes.get("custom_normal")
+        return None if a is None else T.point_attribute(ro.data, "custom_normal")
+
+    def wait_settled():
+        import time
+        time.sleep(modifier_update.SETTLE + 0.05)
+
+    try:
+        wait_settled()
+        exact, fast, none = ({"normals": 1, "positions_only": 0}, {"normals": 0, "positions_only": 1},
+                             {"normals": 0, "positions_only": 0})
+        T.check("live: a first edit is exact", calls(move(0.1)) == exact)
+        T.check("live: custom normals after it", normals_attribute() is not None)
+        n = calls(move(0.1))
+        T.check("live: the next edit within SETTLE is positions only", n == fast, str(n))
+        parity("live: positions only: parity", obj, lat, ref, mod)
+        T.check("live: no custom normals while changing", normals_attribute() is None)
+        T.check("live: status says so", "from geometry normals" in smooth_ffd.status(mod),
+                smooth_ffd.status(mod))
+        n = calls(move(0.05))
+        T.check("live: a third edit too", n == fast, str(n))
+        fast_positions = T.positions(T.evaluated_mesh(obj)).copy()
+        n = calls(T.update)
+        T.check("live: an update without change computes nothing", n == none, str(n))
+        # The settle timer, as a window runs it SETTLE after the last change.
+        T.check("live: the timer waits while changes are recent", modifier_update.settle() is not None)
+        wait_settled()
+        n = calls(lambda: T.check("live: the timer then stops", modifier_update.settle() is None))
+        T.check("live: the settle update is exact", n == exact, str(n))
+        settled = T.positions(T.evaluated_mesh(obj))
+        T.check("live: settled positions = the live ones (bitwise)",
+                np.array_equal(settled, fast_positions))
+        settled_normals = normals_attribute()
+        T.check("live: custom normals after settling", settled_normals is not None)
+        # The same inputs computed exact from scratch: the same normals.
+        modifier_update.forget(obj, mod)
+        n = calls(lambda: smooth_ffd.update(obj, mod, force=True))
+        T.check("live: settled normals = a fresh exact update's",
+                settled_normals is not None and np.array_equal(settled_normals, normals_attribute()),
+                str(n))
+        wait_settled()
+        calls(move(0.1))
+        n = calls(lambda: modifier_update.update_modifier(obj, mod, bpy.context.evaluated_depsgraph_get(),
+                                                          render=True, force=True))
+        T.check("live: render is exact while changing", n == exact, str(n))
+        T.update()
+        wait_settled()
+        compat.set_modifier_input(mod, "Exact Normals", True)
+        obj.update_tag()
+        calls(T.update)
+        n = calls(move(-0.1))
+        T.check("live: Exact Normals stays exact while changing", n == exact, str(n))
+        compat.set_modifier_input(mod, "Exact Normals", False)
+        obj.update_tag()
+        T.update()
+        modifier_update.LIVE = False
+        calls(move(0.1))
+        n = calls(move(0.1))
+        T.check("live off (background default): exact while changing", n == exact, str(n))
+    finally:
+        modifier_update.LIVE, modifier_update.SETTLE = live, settle
+
+
 def test_levels():
     obj, lat, ref, mod = scene(level=1)
     for level in (1, 2, 4):
@@ -589,7 +679,7 @@ def source_digest_mesh(me):
 
 def main():
     T.setup()
-    for fn in (test_lattice_edits, test_update_path, test_positions_only_path, test_levels, test_frames_and_shape_keys, test_uvs_materials, test_hook, test_edit_modes,
+    for fn in (test_lattice_edits, test_update_path, test_positions_only_path, test_live_editing, test_levels, test_frames_and_shape_keys, test_uvs_materials, test_hook, test_edit_modes,
                test_errors, test_undo, test_duplicate, test_save_reload, test_backend_setting,
                test_text_backend_file, test_apply_remove):
         T.run(fn.__name__, fn)

@@ -403,3 +403,8 @@ def unregister():
         lst = getattr(bpy.app.handlers, name)
         if fn in lst:
             lst.remove(fn)
+    # Timers of this module's updates (live editing's settle, a deferred stack reading): a
+    # disabled add-on runs none.
+    for fn in (modifier_update.settle, stack_input._deferred_update):
+        if bpy.app.timers.is_registered(fn):
+            bpy.app.timers.unregister(fn)

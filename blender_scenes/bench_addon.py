@@ -338,6 +338,7 @@ def stack_rows(workload, mesh, lat, levels, moves=("one",)):
         ref.modifiers.new("Subsurf", 'SUBSURF').levels = level
         only_visible(ref)
         bpy.context.view_layer.update()
+        evaluated_tris(ref)   # 4.x/5.x subdivide lazily: the first access is not an update
         timed = time_edit(lat, ref, REPEATS, moves=moves)
         tris = evaluated_tris(ref)
         for move in moves:
@@ -363,6 +364,7 @@ def sffd_rows(workload, mesh, lat, levels, moves=("one",)):
         compat.set_modifier_input(mod, "Exact Normals", False)
         obj.update_tag()
         bpy.context.view_layer.update()
+        evaluated_tris(obj)
         first = 1e3 * (time.perf_counter() - t)
         timed = time_edit(lat, obj, REPEATS, mod, moves=moves)
         tris = evaluated_tris(obj)

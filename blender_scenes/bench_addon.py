@@ -366,6 +366,9 @@ def sffd_rows(workload, mesh, lat, levels, moves=("one",)):
         bpy.context.view_layer.update()
         evaluated_tris(obj)
         first = 1e3 * (time.perf_counter() - t)
+        if not str(smooth_ffd.status(mod)).startswith("OK"):   # a broken core, say: no row
+            sys.exit(f"bench_addon.py: Smooth FFD level {level} on {workload}: "
+                     f"{smooth_ffd.status(mod)}")
         timed = time_edit(lat, obj, REPEATS, mod, moves=moves)
         tris = evaluated_tris(obj)
         for move in moves:

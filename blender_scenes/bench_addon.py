@@ -432,7 +432,8 @@ def workload_targets(workloads):
     rows = []
     for w in workloads:
         rows += workload_rows(w)
-    print(f"load average at the end: {_load()}; ms are medians (phases too, so they need not add up)")
+    print(f"load average at the end: {_load()}; ms are medians (phases too, so they need not add "
+          f"up); speedup = the stack's ms / Smooth FFD's ms")
     print(f"{'Blender':8s} {'workload':8s} {'tris in':>8s} {'':22s} {'move':4s} {'tris out':>10s} "
           f"{'update ms':>9s}   split (ms)")
     for r in rows:
@@ -446,7 +447,7 @@ def workload_targets(workloads):
     if "suzanne" in workloads:
         s, f, x = pair("suzanne", "Lattice + Subsurf 1", "Smooth FFD level 2")
         print(f"target (a) {ver} suzanne: Smooth FFD level 2 ({f['tris']} tris) {f['ms']:.1f} ms "
-              f"vs Lattice + Subsurf 1 ({s['tris']} tris) {s['ms']:.1f} ms: {x:.2f}x faster; "
+              f"vs Lattice + Subsurf 1 ({s['tris']} tris) {s['ms']:.1f} ms: speedup {x:.2f}x; "
               f"target >= 2x: {_verdict(x >= 2)}")
         for lv, sub in ((3, 1), (3, 2), (4, 2)):
             s, f, x = pair("suzanne", f"Lattice + Subsurf {sub}", f"Smooth FFD level {lv}")
@@ -458,7 +459,7 @@ def workload_targets(workloads):
         ups = 1e3 / f["ms"]
         print(f"target (b) {ver} sphere4: Smooth FFD level 4 ({f['tris']} tris) {ups:.1f} updates/s "
               f"({f['ms']:.1f} ms), Lattice + Subsurf 2 ({s['tris']} tris) {1e3 / s['ms']:.1f}/s: "
-              f"{x:.2f}x faster; target >= 10 updates/s: {_verdict(ups >= 10)}")
+              f"speedup {x:.2f}x; target >= 10 updates/s: {_verdict(ups >= 10)}")
     if "dense" in workloads:
         f1, fa = (_find(rows, "dense", "Smooth FFD level 2", m) for m in ("one", "all"))
         s1, sa = (_find(rows, "dense", "Lattice + Subsurf 1", m) for m in ("one", "all"))

@@ -13,6 +13,8 @@ Workloads (default: sphere):
   sphere4  the 46.8k-triangle sphere at level 4 beside Subsurf 2: updates per second;
   dense    a 199,692-triangle sphere (quads), 8x8x8 lattice, level 2 beside Subsurf 1: one
            lattice point moved against all points moved.
+Smooth FFD rows on 4.5+: exact normals on every update (background mode), and "live", the
+viewport while a point is dragged (positions only, modifier_update.LIVE).
 
 Each row splits its median update into where the time went, from marker handlers placed
 first and last in depsgraph_update_pre/post: "pre" (Smooth FFD's work in
@@ -369,16 +371,22 @@ def sffd_rows(workload, mesh, lat, levels, moves=("one",)):
         if not str(smooth_ffd.status(mod)).startswith("OK"):   # a broken core, say: no row
             sys.exit(f"bench_addon.py: Smooth FFD level {level} on {workload}: "
                      f"{smooth_ffd.status(mod)}")
-        timed = time_edit(lat, obj, REPEATS, mod, moves=moves)
-        tris = evaluated_tris(obj)
-        for move in moves:
-            ms, sp = timed[True, move]
-            detail = (f"core deform {sp['core_ms']:.1f} / mesh write {sp['mesh_write_ms']:.1f} / "
-                      f"normals {sp['normals_ms']:.1f} [{sp['normals_path']}]; "
-                      f"{_phase_text(sp)}; first update (plan) {first:.0f}")
-            rows.append(dict(workload=workload, tris_in=mesh_triangles(mesh),
-                             name=f"Smooth FFD level {level}", kind="sffd", level=level,
-                             move=move, tris=tris, ms=ms, detail=detail))
+        # 4.5+: background mode computes exact normals on every update; a window's viewport
+        # computes positions only while a point is dragged (modifier_update.LIVE): both rows.
+        for live in ((None, True) if compat.CHEAP_EXACT_NORMALS else (None,)):
+            modifier_update.LIVE = live
+            timed = time_edit(lat, obj, REPEATS, mod, moves=moves)
+            modifier_update.LIVE = None
+            tris = evaluated_tris(obj)
+            for move in moves:
+                ms, sp = timed[True, move]
+                detail = (f"core deform {sp['core_ms']:.1f} / mesh write {sp['mesh_write_ms']:.1f}"
+                          f" / normals {sp['normals_ms']:.1f} [{sp['normals_path']}]; "
+                          f"{_phase_text(sp)}; first update (plan) {first:.0f}")
+                rows.append(dict(workload=workload, tris_in=mesh_triangles(mesh),
+                                 name=f"Smooth FFD level {level}" + (" live" if live else ""),
+                                 kind="sffd", level=level, move=move, tris=tris, ms=ms,
+                                 detail=detail))
         smooth_ffd.remove_smooth_ffd(obj, mod)
         me = obj.data
         bpy.data.objects.remove(obj)
@@ -434,41 +442,44 @@ def workload_targets(workloads):
         rows += workload_rows(w)
     print(f"load average at the end: {_load()}; ms are medians (phases too, so they need not add "
           f"up); speedup = the stack's ms / Smooth FFD's ms")
-    print(f"{'Blender':8s} {'workload':8s} {'tris in':>8s} {'':22s} {'move':4s} {'tris out':>10s} "
+    print(f"{'Blender':8s} {'workload':8s} {'tris in':>8s} {'':24s} {'move':4s} {'tris out':>10s} "
           f"{'update ms':>9s}   split (ms)")
     for r in rows:
-        print(f"{ver:8s} {r['workload']:8s} {r['tris_in']:8d} {r['name']:22s} {r['move']:4s} "
+        print(f"{ver:8s} {r['workload']:8s} {r['tris_in']:8d} {r['name']:24s} {r['move']:4s} "
               f"{r['tris']:10d} {r['ms']:9.1f}   {r['detail']}")
 
     def pair(w, a, b, move="one"):
         s, f = _find(rows, w, a, move), _find(rows, w, b, move)
         return s, f, s["ms"] / f["ms"]
 
-    if "suzanne" in workloads:
-        s, f, x = pair("suzanne", "Lattice + Subsurf 1", "Smooth FFD level 2")
-        print(f"target (a) {ver} suzanne: Smooth FFD level 2 ({f['tris']} tris) {f['ms']:.1f} ms "
-              f"vs Lattice + Subsurf 1 ({s['tris']} tris) {s['ms']:.1f} ms: speedup {x:.2f}x; "
-              f"target >= 2x: {_verdict(x >= 2)}")
-        for lv, sub in ((3, 1), (3, 2), (4, 2)):
-            s, f, x = pair("suzanne", f"Lattice + Subsurf {sub}", f"Smooth FFD level {lv}")
-            per_tri = (s["ms"] / s["tris"]) / (f["ms"] / f["tris"])
-            print(f"  (a) level {lv} ({f['tris']} tris) vs Subsurf {sub} ({s['tris']} tris): "
-                  f"{x:.2f}x in time, {per_tri:.2f}x per output triangle")
-    if "sphere4" in workloads:
-        s, f, x = pair("sphere4", "Lattice + Subsurf 2", "Smooth FFD level 4")
-        ups = 1e3 / f["ms"]
-        print(f"target (b) {ver} sphere4: Smooth FFD level 4 ({f['tris']} tris) {ups:.1f} updates/s "
-              f"({f['ms']:.1f} ms), Lattice + Subsurf 2 ({s['tris']} tris) {1e3 / s['ms']:.1f}/s: "
-              f"speedup {x:.2f}x; target >= 10 updates/s: {_verdict(ups >= 10)}")
-    if "dense" in workloads:
-        f1, fa = (_find(rows, "dense", "Smooth FFD level 2", m) for m in ("one", "all"))
-        s1, sa = (_find(rows, "dense", "Lattice + Subsurf 1", m) for m in ("one", "all"))
-        print(f"target (c) {ver} dense: Smooth FFD level 2 ({f1['tris']} tris) one point "
-              f"{f1['ms']:.1f} ms, all points {fa['ms']:.1f} ms (all/one {fa['ms'] / f1['ms']:.2f}); "
-              f"Lattice + Subsurf 1 ({s1['tris']} tris) one {s1['ms']:.1f}, all {sa['ms']:.1f} "
-              f"(all/one {sa['ms'] / s1['ms']:.2f}); stack / Smooth FFD: one point "
-              f"{s1['ms'] / f1['ms']:.2f}x, all points {sa['ms'] / fa['ms']:.2f}x (reported; no "
-              f"numeric target)")
+    # " live": the 4.5+ viewport while a point is dragged (positions only), beside the exact rows.
+    for sfx in [""] + [" live"] * any(r["name"].endswith(" live") for r in rows):
+        if "suzanne" in workloads:
+            s, f, x = pair("suzanne", "Lattice + Subsurf 1", "Smooth FFD level 2" + sfx)
+            print(f"target (a) {ver} suzanne: Smooth FFD level 2{sfx} ({f['tris']} tris) "
+                  f"{f['ms']:.1f} ms vs Lattice + Subsurf 1 ({s['tris']} tris) {s['ms']:.1f} ms: "
+                  f"speedup {x:.2f}x; target >= 2x: {_verdict(x >= 2)}")
+            for lv, sub in ((3, 1), (3, 2), (4, 2)):
+                s, f, x = pair("suzanne", f"Lattice + Subsurf {sub}", f"Smooth FFD level {lv}{sfx}")
+                per_tri = (s["ms"] / s["tris"]) / (f["ms"] / f["tris"])
+                print(f"  (a) level {lv}{sfx} ({f['tris']} tris) vs Subsurf {sub} ({s['tris']} tris): "
+                      f"{x:.2f}x in time, {per_tri:.2f}x per output triangle")
+        if "sphere4" in workloads:
+            s, f, x = pair("sphere4", "Lattice + Subsurf 2", "Smooth FFD level 4" + sfx)
+            ups = 1e3 / f["ms"]
+            print(f"target (b) {ver} sphere4: Smooth FFD level 4{sfx} ({f['tris']} tris) {ups:.1f} "
+                  f"updates/s ({f['ms']:.1f} ms), Lattice + Subsurf 2 ({s['tris']} tris) "
+                  f"{1e3 / s['ms']:.1f}/s: speedup {x:.2f}x; target >= 10 updates/s: "
+                  f"{_verdict(ups >= 10)}")
+        if "dense" in workloads:
+            f1, fa = (_find(rows, "dense", "Smooth FFD level 2" + sfx, m) for m in ("one", "all"))
+            s1, sa = (_find(rows, "dense", "Lattice + Subsurf 1", m) for m in ("one", "all"))
+            print(f"target (c) {ver} dense: Smooth FFD level 2{sfx} ({f1['tris']} tris) one point "
+                  f"{f1['ms']:.1f} ms, all points {fa['ms']:.1f} ms (all/one "
+                  f"{fa['ms'] / f1['ms']:.2f}); Lattice + Subsurf 1 ({s1['tris']} tris) one "
+                  f"{s1['ms']:.1f}, all {sa['ms']:.1f} (all/one {sa['ms'] / s1['ms']:.2f}); stack / "
+                  f"Smooth FFD: one point {s1['ms'] / f1['ms']:.2f}x, all points "
+                  f"{sa['ms'] / fa['ms']:.2f}x (reported; no numeric target)")
     sys.stdout.flush()
 
 

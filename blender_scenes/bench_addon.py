@@ -1,9 +1,20 @@
-"""Timing of one live update (a lattice point moved) on a 46.8k-triangle sphere: Smooth FFD at
-viewport levels 4 and 10 beside Blender's Lattice + Subdivision Surface at the same density
-(levels 2 and 3), in the same run. Prints, asserts nothing.
+"""Timing of one live update (a lattice point moved) in Blender: Smooth FFD beside Blender's
+Lattice + Subdivision Surface at the same density, in the same run. Prints, asserts nothing.
 
-    blender -b --factory-startup --python blender_scenes/bench_addon.py [-- REPEATS [ab] [noexact]]
-    ~/.cache/smoothffd/venv-bpy-5.0/bin/python blender_scenes/bench_addon.py [REPEATS [ab] [noexact]]
+    blender -b --factory-startup --python blender_scenes/bench_addon.py [-- REPEATS [ab] [noexact] [WORKLOAD...]]
+    ~/.cache/smoothffd/venv-bpy-5.0/bin/python blender_scenes/bench_addon.py [REPEATS [ab] [noexact] [WORKLOAD...]]
+
+Workloads (default: sphere):
+  sphere   the 46.8k-triangle sphere, 5x5x5 lattice: Smooth FFD viewport levels 4 and 10
+           beside Lattice + Subsurf levels 2 and 3 (and exact normals on 3.4-4.0);
+  targets  issue 21's targets, one table: suzanne, sphere4 and dense below;
+  suzanne  Suzanne with Subsurf 2 applied (15,744 triangles, smooth), 4x4x4 lattice:
+           levels 2, 3, 4 beside Subsurf 1 and 2 (level 2 ~ Subsurf 1, level 4 ~ Subsurf 2);
+  sphere4  the 46.8k-triangle sphere at level 4 beside Subsurf 2: updates per second;
+  dense    a 199,692-triangle sphere (quads), 8x8x8 lattice, level 2 beside Subsurf 1: one
+           lattice point moved against all points moved.
+Smooth FFD rows on 4.5+: exact normals on every update (background mode), and "live", the
+viewport while a point is dragged (positions only, modifier_update.LIVE).
 
 Each row splits its median update into where the time went, from marker handlers placed
 first and last in depsgraph_update_pre/post: "pre" (Smooth FFD's work in
@@ -39,33 +50,91 @@ REPEATS = int(argv()[0]) if argv() else 5
 AB = "ab" in argv()[1:]
 # "noexact": skip the exact-normals rows on 3.4-4.0 (minutes at level 10; the tests use it).
 NO_EXACT = "noexact" in argv()[1:]
+_GROUPS = {"targets": ("suzanne", "sphere4", "dense")}
+WORKLOADS = [w for a in argv()[1:] if a not in ("ab", "noexact")
+             for w in _GROUPS.get(a, (a,))] or ["sphere"]
+for _w in WORKLOADS:
+    if _w not in ("sphere", "suzanne", "sphere4", "dense"):
+        sys.exit(f"bench_addon.py: unknown workload {_w!r} (sphere, targets, suzanne, sphere4, dense)")
 
 
-def sphere(name):
-    """UV sphere 180 x 131, triangulated: 2 * 180 * 130 = 46,800 triangles, smooth."""
+def sphere_mesh(name, u=180, v=131, triangulate=True):
+    """UV sphere, smooth. 180 x 131 triangulated: 2 * 180 * 130 = 46,800 triangles."""
     me = bpy.data.meshes.new(name)
     bm = bmesh.new()
-    bmesh.ops.create_uvsphere(bm, u_segments=180, v_segments=131, radius=1.0)
-    bmesh.ops.triangulate(bm, faces=bm.faces[:])
+    bmesh.ops.create_uvsphere(bm, u_segments=u, v_segments=v, radius=1.0)
+    if triangulate:
+        bmesh.ops.triangulate(bm, faces=bm.faces[:])
     bm.to_mesh(me)
     bm.free()
     me.polygons.foreach_set("use_smooth", np.ones(len(me.polygons), dtype=bool))
     me.update()
-    obj = bpy.data.objects.new(name, me)
+    return me
+
+
+def cube_sphere_mesh(name, cuts=128):
+    """A cube's faces cut into (cuts + 1)^2 quads each, pushed onto the unit sphere, smooth:
+    6 * 129^2 = 99,846 quads (199,692 triangles) at 128 cuts. (A UV sphere this dense has
+    400-valent poles, on which Blender 3.4's first Subdivision Surface takes minutes.)"""
+    me = bpy.data.meshes.new(name)
+    bm = bmesh.new()
+    bmesh.ops.create_cube(bm, size=2.0)
+    bmesh.ops.subdivide_edges(bm, edges=bm.edges[:], cuts=cuts, use_grid_fill=True)
+    for v in bm.verts:
+        v.co.normalize()
+    bm.to_mesh(me)
+    bm.free()
+    me.polygons.foreach_set("use_smooth", np.ones(len(me.polygons), dtype=bool))
+    me.update()
+    return me
+
+
+def suzanne_mesh():
+    """Blender's Suzanne with a Subdivision Surface level 2 applied: 7,872 quads (15,744
+    triangles), smooth."""
+    me = bpy.data.meshes.new("suzanne_base")
+    bm = bmesh.new()
+    bmesh.ops.create_monkey(bm)
+    bm.to_mesh(me)
+    bm.free()
+    tmp = link(bpy.data.objects.new("suzanne_tmp", me))
+    tmp.modifiers.new("Subsurf", 'SUBSURF').levels = 2
+    bpy.context.view_layer.update()
+    out = bpy.data.meshes.new_from_object(tmp.evaluated_get(bpy.context.evaluated_depsgraph_get()))
+    out.name = "suzanne"
+    bpy.data.objects.remove(tmp)
+    bpy.data.meshes.remove(me)
+    out.polygons.foreach_set("use_smooth", np.ones(len(out.polygons), dtype=bool))
+    out.update()
+    return out
+
+
+def link(obj):
     bpy.context.scene.collection.objects.link(obj)
     return obj
 
 
-def lattice():
+def sphere(name):
+    """The 46,800-triangle sphere as an object."""
+    return link(bpy.data.objects.new(name, sphere_mesh(name)))
+
+
+def lattice(n=5, center=(0.0, 0.0, 0.0), size=(2.4, 2.4, 2.4)):
+    """n x n x n lattice (B-spline, Blender's default interpolation) around center, its
+    deformed points jittered by up to 0.03 of its size (the same seed for every run)."""
     lt = bpy.data.lattices.new("lat")
-    lt.points_u = lt.points_v = lt.points_w = 5   # the paper's 5x5x5 control points
-    obj = bpy.data.objects.new("lat", lt)
-    obj.scale = (2.4, 2.4, 2.4)
-    bpy.context.scene.collection.objects.link(obj)
+    lt.points_u = lt.points_v = lt.points_w = n   # 5: the paper's 5x5x5 control points
+    obj = link(bpy.data.objects.new("lat", lt))
+    obj.location = center
+    obj.scale = size
     rng = np.random.default_rng(1)
     for p in lt.points:
         p.co_deform = np.array(p.co) + rng.uniform(-0.03, 0.03, 3)
     return obj
+
+
+def mesh_triangles(me):
+    return len(me.loops) - 2 * len(me.polygons)
 
 
 def only_visible(obj):
@@ -124,23 +193,40 @@ def _set_early(on):
         lst.remove(fn)
 
 
-def time_edit(lat, obj, repeats, mod=None, early_modes=(True,)):
-    """{early: (median ms, split)}: ms from moving one lattice point to the evaluated mesh
-    being ready, and the median of each phase (see the module docstring) and of Smooth
-    FFD's own timings. With early_modes=(True, False) the updates alternate between the
-    add-on as shipped and the add-on without its depsgraph_update_pre handler (interleaved,
-    so that both see the same machine load).
+def center_point(lat):
+    """Index of the lattice's middle point (62 in a 5x5x5 lattice)."""
+    lt = lat.data
+    return lt.points_u // 2 + lt.points_u * (lt.points_v // 2 + lt.points_v * (lt.points_w // 2))
+
+
+def _move(lat, move, sign):
+    """Moves the middle point ("one") or every point ("all", each its own direction)."""
+    pts = lat.data.points
+    if move == "one":
+        pts[center_point(lat)].co_deform.z += 0.01 * sign
+        return
+    d = np.random.default_rng(2).uniform(-0.01, 0.01, (len(pts), 3))
+    for p, dp in zip(pts, d):
+        p.co_deform = np.array(p.co_deform) + sign * dp
+
+
+def time_edit(lat, obj, repeats, mod=None, early_modes=(True,), moves=("one",)):
+    """{(early, move): (median ms, split)}: ms from moving lattice points (move "one": the
+    middle point, "all": every point; the points are moved before the clock starts) to the
+    evaluated mesh being ready, and the median of each phase (see the module docstring) and
+    of Smooth FFD's own timings. With early_modes=(True, False) the updates alternate
+    between the add-on as shipped and the add-on without its depsgraph_update_pre handler;
+    several moves alternate likewise (interleaved, so that all see the same machine load).
 
     Blender 4.x/5.x evaluate a final Subdivision Surface lazily, when the mesh is first
     accessed, so the timing includes that access (len(vertices)) for both stacks."""
-    samples = {e: ([], [], []) for e in early_modes}
-    p = lat.data.points[62]
+    samples = {(e, m): ([], [], []) for e in early_modes for m in moves}
     for i in range(repeats):
-        for early in early_modes:
+        for early, move in samples:
             _set_early(early)
             _install_markers()
-            times, phases, own = samples[early]
-            p.co_deform.z += 0.01 * (1 if i % 2 == 0 else -1)
+            times, phases, own = samples[early, move]
+            _move(lat, move, 1 if i % 2 == 0 else -1)
             _marks.clear()
             t = time.perf_counter()
             bpy.context.view_layer.update()
@@ -155,14 +241,14 @@ def time_edit(lat, obj, repeats, mod=None, early_modes=(True,)):
     _set_early(True)
     med = lambda xs: float(np.median(xs)) if xs else 0.0
     out = {}
-    for early, (times, phases, own) in samples.items():
+    for key, (times, phases, own) in samples.items():
         split = {k: med([ph[k] for ph in phases]) for k in phases[0]}
         for k in ("deform_ms", "mesh_write_ms", "normals_ms"):
             split[k] = med([lt.get(k, 0.0) for lt in own])
         split["core_ms"] = med([lt.get("stats", {}).get("deform_ms", 0.0) for lt in own])
         split["normals_path"] = own[-1].get("normals") if own else None
         split["device"] = own[-1].get("stats", {}).get("device") if own else None
-        out[early] = (med(times), split)
+        out[key] = (med(times), split)
     return out
 
 
@@ -178,14 +264,22 @@ def evaluated_tris(obj):
     return len(me.loops) - 2 * len(me.polygons)
 
 
-def main():
-    smooth_ffd.register()
+def clear_objects():
     for o in list(bpy.data.objects):
         bpy.data.objects.remove(o)
+
+
+def _load():
+    return " ".join(f"{x:.2f}" for x in os.getloadavg())
+
+
+def workload_sphere():
+    """The 46.8k-triangle sphere: levels 4 and 10 beside Subsurf 2 and 3 (the default)."""
+    clear_objects()
     lat = lattice()
     print(f"Blender {bpy.app.version_string}, {os.cpu_count()} CPUs; sphere 46,800 triangles, "
           f"lattice 5x5x5 B-spline; one live update = move a lattice point + depsgraph update; "
-          f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+          f"load average {_load()}")
     rows = []
     for level in (2, 3):
         ref = sphere(f"stack{level}")
@@ -193,7 +287,7 @@ def main():
         ref.modifiers.new("Subsurf", 'SUBSURF').levels = level
         only_visible(ref)
         bpy.context.view_layer.update()
-        ms, split = time_edit(lat, ref, REPEATS)[True]
+        ms, split = time_edit(lat, ref, REPEATS)[True, "one"]
         rows.append((f"Lattice + Subsurf level {level}", evaluated_tris(ref), ms, _phase_text(split)))
         bpy.data.objects.remove(ref)
 
@@ -211,7 +305,7 @@ def main():
             bpy.context.view_layer.update()
             first = 1e3 * (time.perf_counter() - t)
             timed = time_edit(lat, obj, REPEATS, mod, (True, False) if AB else (True,))
-            for early, (ms, split) in timed.items():
+            for (early, _move_kind), (ms, split) in timed.items():
                 detail = (f"{_phase_text(split)}; deform {split['deform_ms']:.0f} (core "
                           f"{split['core_ms']:.0f}), mesh write {split['mesh_write_ms']:.0f}, "
                           f"normals {split['normals_ms']:.0f} [{split['normals_path']}]; first "
@@ -221,7 +315,7 @@ def main():
                 rows.append((name, evaluated_tris(obj), ms, detail))
             smooth_ffd.remove_smooth_ffd(obj, mod)
             bpy.data.objects.remove(obj)
-    print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}; "
+    print(f"load average at the end: {_load()}; "
           f"median of {REPEATS} updates; phases in ms (medians, so they need not add up)")
     print(f"{'':34s} {'triangles':>10s} {'update ms':>10s} {'ns/tri':>7s}")
     for name, tris, ms, detail in rows:
@@ -234,5 +328,167 @@ def main():
               f"{(m0 / t0) / (m1 / t1):.2f}x per triangle")
     sys.stdout.flush()
 
+
+# --- issue 21's targets: one table over several workloads -------------------------------------
+
+def stack_rows(workload, mesh, lat, levels, moves=("one",)):
+    """Rows of Lattice + Subdivision Surface at each level on a copy of mesh."""
+    rows = []
+    for level in levels:
+        ref = link(bpy.data.objects.new(f"stack{level}", mesh.copy()))
+        ref.modifiers.new("Lattice", 'LATTICE').object = lat
+        ref.modifiers.new("Subsurf", 'SUBSURF').levels = level
+        only_visible(ref)
+        bpy.context.view_layer.update()
+        evaluated_tris(ref)   # 4.x/5.x subdivide lazily: the first access is not an update
+        timed = time_edit(lat, ref, REPEATS, moves=moves)
+        tris = evaluated_tris(ref)
+        for move in moves:
+            ms, split = timed[True, move]
+            rows.append(dict(workload=workload, tris_in=mesh_triangles(mesh),
+                             name=f"Lattice + Subsurf {level}", kind="stack", level=level,
+                             move=move, tris=tris, ms=ms, detail=_phase_text(split)))
+        me = ref.data
+        bpy.data.objects.remove(ref)
+        bpy.data.meshes.remove(me)
+    return rows
+
+
+def sffd_rows(workload, mesh, lat, levels, moves=("one",)):
+    """Rows of Smooth FFD (CPU backend, the add-on's default normals) at each viewport level."""
+    rows = []
+    for level in levels:
+        obj = link(bpy.data.objects.new(f"sffd{level}", mesh.copy()))
+        only_visible(obj)
+        t = time.perf_counter()
+        mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=level, render_level=level,
+                                        backend="cpu")
+        compat.set_modifier_input(mod, "Exact Normals", False)
+        obj.update_tag()
+        bpy.context.view_layer.update()
+        evaluated_tris(obj)
+        first = 1e3 * (time.perf_counter() - t)
+        if not str(smooth_ffd.status(mod)).startswith("OK"):   # a broken core, say: no row
+            sys.exit(f"bench_addon.py: Smooth FFD level {level} on {workload}: "
+                     f"{smooth_ffd.status(mod)}")
+        # 4.5+: background mode computes exact normals on every update; a window's viewport
+        # computes positions only while a point is dragged (modifier_update.LIVE): both rows.
+        for live in ((None, True) if compat.CHEAP_EXACT_NORMALS else (None,)):
+            modifier_update.LIVE = live
+            timed = time_edit(lat, obj, REPEATS, mod, moves=moves)
+            modifier_update.LIVE = None
+            tris = evaluated_tris(obj)
+            for move in moves:
+                ms, sp = timed[True, move]
+                detail = (f"core deform {sp['core_ms']:.1f} / mesh write {sp['mesh_write_ms']:.1f}"
+                          f" / normals {sp['normals_ms']:.1f} [{sp['normals_path']}]; "
+                          f"{_phase_text(sp)}; first update (plan) {first:.0f}")
+                rows.append(dict(workload=workload, tris_in=mesh_triangles(mesh),
+                                 name=f"Smooth FFD level {level}" + (" live" if live else ""),
+                                 kind="sffd", level=level, move=move, tris=tris, ms=ms,
+                                 detail=detail))
+        smooth_ffd.remove_smooth_ffd(obj, mod)
+        me = obj.data
+        bpy.data.objects.remove(obj)
+        bpy.data.meshes.remove(me)
+    return rows
+
+
+def _bbox(mesh):
+    co = np.empty(3 * len(mesh.vertices))
+    mesh.vertices.foreach_get("co", co)
+    co = co.reshape(-1, 3)
+    return (co.min(0) + co.max(0)) / 2, co.max(0) - co.min(0)
+
+
+def workload_rows(workload):
+    clear_objects()
+    if workload == "suzanne":
+        mesh = suzanne_mesh()
+        center, ext = _bbox(mesh)
+        lat = lattice(4, tuple(center), tuple(1.05 * ext))
+        rows = stack_rows(workload, mesh, lat, (1, 2)) + sffd_rows(workload, mesh, lat, (2, 3, 4))
+    elif workload == "sphere4":
+        mesh = sphere_mesh("sphere")
+        lat = lattice()
+        rows = stack_rows(workload, mesh, lat, (2,)) + sffd_rows(workload, mesh, lat, (4,))
+    else:   # dense: 199,692 triangles
+        mesh = cube_sphere_mesh("dense")
+        lat = lattice(8)
+        moves = ("one", "all")
+        rows = stack_rows(workload, mesh, lat, (1,), moves) + sffd_rows(workload, mesh, lat, (2,), moves)
+    bpy.data.meshes.remove(mesh)
+    clear_objects()
+    return rows
+
+
+def _find(rows, workload, name, move="one"):
+    return next(r for r in rows if r["workload"] == workload and r["name"] == name
+                and r["move"] == move)
+
+
+def _verdict(ok):
+    return "met" if ok else "NOT met"
+
+
+def workload_targets(workloads):
+    """Issue 21's targets: rows for each workload, then one line per target."""
+    ver = bpy.app.version_string.split()[0]
+    print(f"Blender {bpy.app.version_string}, {os.cpu_count()} CPUs, CPU backend; one live update "
+          f"= move lattice points + depsgraph update until the evaluated mesh is ready; median of "
+          f"{REPEATS}; lattices B-spline; load average {_load()}")
+    rows = []
+    for w in workloads:
+        rows += workload_rows(w)
+    print(f"load average at the end: {_load()}; ms are medians (phases too, so they need not add "
+          f"up); speedup = the stack's ms / Smooth FFD's ms")
+    print(f"{'Blender':8s} {'workload':8s} {'tris in':>8s} {'':24s} {'move':4s} {'tris out':>10s} "
+          f"{'update ms':>9s}   split (ms)")
+    for r in rows:
+        print(f"{ver:8s} {r['workload']:8s} {r['tris_in']:8d} {r['name']:24s} {r['move']:4s} "
+              f"{r['tris']:10d} {r['ms']:9.1f}   {r['detail']}")
+
+    def pair(w, a, b, move="one"):
+        s, f = _find(rows, w, a, move), _find(rows, w, b, move)
+        return s, f, s["ms"] / f["ms"]
+
+    # " live": the 4.5+ viewport while a point is dragged (positions only), beside the exact rows.
+    for sfx in [""] + [" live"] * any(r["name"].endswith(" live") for r in rows):
+        if "suzanne" in workloads:
+            s, f, x = pair("suzanne", "Lattice + Subsurf 1", "Smooth FFD level 2" + sfx)
+            print(f"target (a) {ver} suzanne: Smooth FFD level 2{sfx} ({f['tris']} tris) "
+                  f"{f['ms']:.1f} ms vs Lattice + Subsurf 1 ({s['tris']} tris) {s['ms']:.1f} ms: "
+                  f"speedup {x:.2f}x; target >= 2x: {_verdict(x >= 2)}")
+            for lv, sub in ((3, 1), (3, 2), (4, 2)):
+                s, f, x = pair("suzanne", f"Lattice + Subsurf {sub}", f"Smooth FFD level {lv}{sfx}")
+                per_tri = (s["ms"] / s["tris"]) / (f["ms"] / f["tris"])
+                print(f"  (a) level {lv}{sfx} ({f['tris']} tris) vs Subsurf {sub} ({s['tris']} tris): "
+                      f"{x:.2f}x in time, {per_tri:.2f}x per output triangle")
+        if "sphere4" in workloads:
+            s, f, x = pair("sphere4", "Lattice + Subsurf 2", "Smooth FFD level 4" + sfx)
+            ups = 1e3 / f["ms"]
+            print(f"target (b) {ver} sphere4: Smooth FFD level 4{sfx} ({f['tris']} tris) {ups:.1f} "
+                  f"updates/s ({f['ms']:.1f} ms), Lattice + Subsurf 2 ({s['tris']} tris) "
+                  f"{1e3 / s['ms']:.1f}/s: speedup {x:.2f}x; target >= 10 updates/s: "
+                  f"{_verdict(ups >= 10)}")
+        if "dense" in workloads:
+            f1, fa = (_find(rows, "dense", "Smooth FFD level 2" + sfx, m) for m in ("one", "all"))
+            s1, sa = (_find(rows, "dense", "Lattice + Subsurf 1", m) for m in ("one", "all"))
+            print(f"target (c) {ver} dense: Smooth FFD level 2{sfx} ({f1['tris']} tris) one point "
+                  f"{f1['ms']:.1f} ms, all points {fa['ms']:.1f} ms (all/one "
+                  f"{fa['ms'] / f1['ms']:.2f}); Lattice + Subsurf 1 ({s1['tris']} tris) one "
+                  f"{s1['ms']:.1f}, all {sa['ms']:.1f} (all/one {sa['ms'] / s1['ms']:.2f}); stack / "
+                  f"Smooth FFD: one point {s1['ms'] / f1['ms']:.2f}x, all points "
+                  f"{sa['ms'] / fa['ms']:.2f}x (reported; no numeric target)")
+    sys.stdout.flush()
+
+
+def main():
+    smooth_ffd.register()
+    if "sphere" in WORKLOADS:
+        workload_sphere()
+    targets = [w for w in WORKLOADS if w != "sphere"]
+    if targets:
+        workload_targets(targets)
 
 main()

@@ -349,12 +349,11 @@ def test_live_editing():
         n = calls(move(0.1))
         T.check("live off (background default): exact while changing", n == exact, str(n))
         # A window registers the settle timer; disabling the add-on drops it.
-        from smooth_ffd import handlers
         bpy.app.timers.register(modifier_update.settle, first_interval=60)
-        handlers.unregister()
+        T.handlers.unregister()
         T.check("live: the add-on's unregister drops the settle timer",
                 not bpy.app.timers.is_registered(modifier_update.settle))
-        handlers.register()
+        T.handlers.register()
     finally:
         modifier_update.LIVE, modifier_update.SETTLE = live, settle
 

@@ -137,6 +137,21 @@ def mesh_triangles(me):
     return len(me.loops) - 2 * len(me.polygons)
 
 
+def add_sffd(obj, lat, level, exact, read=None):
+    """Smooth FFD (CPU backend) at this viewport and render level, Exact Normals on or off,
+    evaluated (read(obj): also the evaluated mesh); returns (modifier, ms of that first
+    update, the plan included)."""
+    t = time.perf_counter()
+    mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=level, render_level=level,
+                                    backend="cpu")
+    compat.set_modifier_input(mod, "Exact Normals", exact)
+    obj.update_tag()
+    bpy.context.view_layer.update()
+    if read is not None:
+        read(obj)
+    return mod, 1e3 * (time.perf_counter() - t)
+
+
 def only_visible(obj):
     """Hidden objects are not evaluated, so each timing sees one object's work."""
     for o in bpy.context.scene.objects:
@@ -297,13 +312,7 @@ def workload_sphere():
         for level in (4, 10):
             obj = sphere(f"sffd{level}")
             only_visible(obj)
-            t = time.perf_counter()
-            mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=level, render_level=level,
-                                            backend="cpu")
-            compat.set_modifier_input(mod, "Exact Normals", exact)
-            obj.update_tag()
-            bpy.context.view_layer.update()
-            first = 1e3 * (time.perf_counter() - t)
+            mod, first = add_sffd(obj, lat, level, exact)
             timed = time_edit(lat, obj, REPEATS, mod, (True, False) if AB else (True,))
             for (early, _move_kind), (ms, split) in timed.items():
                 detail = (f"{_phase_text(split)}; deform {split['deform_ms']:.0f} (core "
@@ -360,14 +369,7 @@ def sffd_rows(workload, mesh, lat, levels, moves=("one",)):
     for level in levels:
         obj = link(bpy.data.objects.new(f"sffd{level}", mesh.copy()))
         only_visible(obj)
-        t = time.perf_counter()
-        mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=level, render_level=level,
-                                        backend="cpu")
-        compat.set_modifier_input(mod, "Exact Normals", False)
-        obj.update_tag()
-        bpy.context.view_layer.update()
-        evaluated_tris(obj)
-        first = 1e3 * (time.perf_counter() - t)
+        mod, first = add_sffd(obj, lat, level, False, evaluated_tris)
         if not str(smooth_ffd.status(mod)).startswith("OK"):   # a broken core, say: no row
             sys.exit(f"bench_addon.py: Smooth FFD level {level} on {workload}: "
                      f"{smooth_ffd.status(mod)}")

@@ -28,7 +28,7 @@ if has build; then
 fi
 python3 -c "import smoothffd; print(smoothffd.cuda_status())"
 if has test; then
-  timeout ${TEST_TIMEOUT:-300} python3 -m pytest -q ${PYTEST_X--x} tests/test_cuda.py tests/test_render_vertices.py tests/test_compact.py \
+  timeout ${TEST_TIMEOUT:-300} python3 -m pytest -q ${PYTEST_X--x} tests/test_cuda.py tests/test_cuda_real_meshes.py tests/test_render_vertices.py tests/test_compact.py \
     tests/test_bench_native.py 2>&1 | tee "$OUT/test_cuda.log" | tail -15
 fi
 if has sanitize; then

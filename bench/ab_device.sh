@@ -65,7 +65,8 @@ for r in rows:
 for (L, lab), rs in sorted(by.items()):
     print(f"L={L} {lab}: events {statistics.median(r['events'] for r in rs):.4f} "
           f"queued {statistics.median(r.get('queued', float('nan')) for r in rs):.4f} "
-          f"graph {statistics.median(r['graph'] for r in rs):.4f} floor {statistics.median(r['floor'] for r in rs):.4f} (n={len(rs)})")
+          f"graph {statistics.median(r['graph'] for r in rs):.4f} floor {statistics.median(r['floor'] for r in rs):.4f} (n={len(rs)}) "
+          f"patches {rs[0].get('patches')} samples {rs[0].get('samples')} outputs {rs[0].get('outputs')}")
 PY
 # NCU=1: then Nsight Compute on the working tree's kernel (bench/profile_device.sh's profile).
 [ "${NCU:-0}" = 1 ] && STEPS=" " BENCH_ARGS=" " bash bench/profile_device.sh 2>&1 | tail -12

@@ -3,11 +3,13 @@ bench/ab_device.sh runs it alternately against two builds in one device call, so
 change is compared with its reference on the same machine (the floor varies between calls).
 
     PYTHONPATH=<tree>/python python3 bench/ab_time.py [--iters 100] [--level 10] [--label new]
-        [--path fused|cublas] [--limit BYTES] [--degree D]
+        [--path fused|cublas] [--limit BYTES] [--degree D] [--shape N]
 
 --limit emulates a GPU with that much shared memory a block (shared_memory_limit), --degree
 uses a lattice of that degree: the inline kernel's other modes, reached as a plan or a device
-reaches them. Works with trees from before the timing harness moved to bench/ (their
+reaches them. --shape N: N control points an axis (default 5); N = degree + 1 is one knot span,
+no knot plane cuts the torus, so two trees whose plan builders differ (clipping) build the same
+plan and the kernels compare on equal work (the printed patch, sample and output counts). Works with trees from before the timing harness moved to bench/ (their
 CudaEvaluator.benchmark) and after (bench/native's sffd_bench module).
 """
 
@@ -30,14 +32,16 @@ ap.add_argument("--label", default="")
 ap.add_argument("--path", default="fused")
 ap.add_argument("--limit", type=int, default=0, help="shared_memory_limit (bytes; 0: the device's own)")
 ap.add_argument("--degree", type=int, default=2, help="lattice degree (every axis)")
+ap.add_argument("--shape", type=int, default=5, help="lattice control points an axis")
 args = ap.parse_args()
 P, F, N = bench_gpu.torus(167, 140)
-lat = bench_gpu.lattice_for(P, np.random.default_rng(2015), degree=(args.degree,) * 3)
+lat = bench_gpu.lattice_for(P, np.random.default_rng(2015), shape=(args.shape,) * 3, degree=(args.degree,) * 3)
 mesh = smoothffd.Mesh(P, F, corner_normals=N[F.reshape(-1)])
 plan = smoothffd.Deformer(mesh, lat, level=args.level, device="cpu").plan
 b = bench_gpu.benchmark(plan, args.path, args.limit, bench_gpu.values(lat), args.iters)
 kernel = b["kernel"]
 print(json.dumps(dict(label=args.label, module=os.path.dirname(smoothffd.__file__), level=args.level,
-                      path=args.path, limit=args.limit, degree=args.degree, kernel=kernel,
+                      path=args.path, limit=args.limit, degree=args.degree, shape=args.shape, kernel=kernel,
+                      patches=plan.patches, samples=getattr(plan, "samples", None), outputs=plan.output_vertices,
                       events=b["total_events"], queued=b.get("total_events_queued", float("nan")),
                       graph=b["total_graph"], floor=b["floor_ms"])))

@@ -177,14 +177,26 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
     }
     if (live) {
       const float4 P0 = ld(rec.corner[0]), P1 = ld(rec.corner[1]), P2 = ld(rec.corner[2]);
-      for (int i = lane; i < n_cols; i += LANES) {
+      // The columns' boxes through a pointer stepped with i: as rec.box[i], the compiler
+      // folded &srec[lp] into the loop's address and rebuilt it every column (S2UR, LEA, IMAD,
+      // IADD3 before the box index's load, which starts the sample's dependency chain; 4 more
+      // instructions a column than this form on sm_90, bench/sass_compare.sh). With it, the
+      // rest normals are loaded above the loop (else they were reloaded every column); the
+      // global mode loads them a column (above the loop: 12 bytes of spills with 3 terms).
+      const uint8_t* box_of = rec.box + lane;
+      V3 rn[3];
+      auto load_rest = [&] {
+        for (int q = 0; q < 3; ++q) rn[q] = load3(rec.rest + 3 * q);
+      };
+      if constexpr (SHARED) load_rest();
+      for (int i = lane; i < n_cols; i += LANES, box_of += LANES) {
         const int k = column(i);
         const InlineColumn& cl = sCol[k];
         float F[3], J[9];
         float4 pw;
         if constexpr (SHARED) {
           pw = inline_sample_point(cl, rec.flags, P0, P1, P2);
-          const int b = rec.box[i];
+          const int b = *box_of;
           const uint32_t packed = (uint32_t)sBoxList[b].w;
           if constexpr (BOXES) {
             sample_box<C>(sBox, reinterpret_cast<const InlinePiece*>(sP), pw, make_uint2(packed, (uint32_t)b), F, J);
@@ -208,7 +220,7 @@ __global__ void __launch_bounds__(PB* LANES, MINB)
         const float4 col = ld(cl.bary);
         const V3 x = v3(F[0], F[1], F[2]);
         // deformed_column_normal (stages.hpp) with the column's point from the column table.
-        const V3 rn[3] = {load3(rec.rest), load3(rec.rest + 3), load3(rec.rest + 6)};
+        if constexpr (!SHARED) load_rest();
         const V3 n = deformed_normal_at(col.x, col.y, col.z, rn, J);
         int con = k - K0;
         if (k < K0) {

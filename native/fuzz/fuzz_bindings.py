@@ -310,8 +310,11 @@ def run_case(seed, index, fx, stats, log=None):
     except Exception as e:  # a Python exception is the contract
         outcome = type(e).__name__
     dt = time.perf_counter() - t0
-    if dt > 10:
-        raise AssertionError(f"{seed}:{index} {name} took {dt:.1f} s")
+    # A slow refusal is a finding (level 2**31 - 1 once allocated for 11 s before failing); a
+    # call that succeeds does work in proportion to what it returns (level 1023 on a cube:
+    # 12.5 M triangles, 3.6 GB, 6-10.5 s on the 2-core machine), up to the parent's hang limit.
+    if dt > (10 if outcome != "ok" else 25):
+        raise AssertionError(f"{seed}:{index} {name} took {dt:.1f} s ({outcome})")
     stats[(name, outcome)] = stats.get((name, outcome), 0) + 1
 
 

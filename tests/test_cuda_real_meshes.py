@@ -18,6 +18,7 @@ import pytest
 import smoothffd
 from smoothffd import _core, metrics
 
+import test_cuda
 import test_real_meshes as real
 
 _USABLE, _WHY = smoothffd.cuda_status()
@@ -25,12 +26,6 @@ pytestmark = pytest.mark.skipif(not _USABLE, reason=f"no usable CUDA device: {_W
 
 PATHS = ("fused", "cublas")
 LEVELS = (1, 3, 6)
-
-
-def _angles(a, b):
-    a = a / np.linalg.norm(a, axis=-1, keepdims=True)
-    b = b / np.linalg.norm(b, axis=-1, keepdims=True)
-    return np.arccos(np.clip(np.einsum("...i,...i->...", a, b), -1.0, 1.0))
 
 
 def _agree(mesh, lattice, level, path):
@@ -43,8 +38,6 @@ def _agree(mesh, lattice, level, path):
     nearly coplanar flat faces reach 0.9 degrees, tests/test_compact.py), so the per-corner
     CUDA normals are compared with the CPU's compact normals gathered the same way."""
     if path == "cublas":
-        import test_cuda
-
         test_cuda.need_cublas()
     plan = smoothffd.Deformer(mesh, lattice, level=level, device="cpu").plan
     vals = np.ascontiguousarray(lattice._core_values(), dtype=np.float32)
@@ -56,7 +49,7 @@ def _agree(mesh, lattice, level, path):
     assert np.isfinite(pg).all() and np.isfinite(rg).all(), "output not written"
     size = np.linalg.norm(np.ptp(mesh.positions, axis=0))
     dp = np.abs(pg.astype(np.float64) - pc).max() / size
-    da = _angles(rg.astype(np.float64), rnc.astype(np.float64)).max()
+    da = test_cuda.angles(rg.astype(np.float64), rnc.astype(np.float64)).max()
     assert dp <= 1e-5, f"level {level}: positions differ by {dp:.2e} of the diagonal"
     assert da <= 1e-4, f"level {level}: normals differ by {da:.2e} rad"
     _core._testing.poison(ev)
@@ -66,7 +59,7 @@ def _agree(mesh, lattice, level, path):
     np.testing.assert_array_equal(ngc, rg[rtri])
     # The CPU's own per-corner normals: the owner's within the normal class.
     _, nc, _ = cpu.evaluate(vals)
-    assert _angles(nc.astype(np.float64), rnc[rtri].astype(np.float64)).max() <= np.radians(1.0) + 1e-4
+    assert test_cuda.angles(nc.astype(np.float64), rnc[rtri].astype(np.float64)).max() <= np.radians(1.0) + 1e-4
     return plan
 
 

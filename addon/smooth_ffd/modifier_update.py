@@ -32,7 +32,6 @@ class _State:
         self.output = (None, None)  # (plan_key, digest of that plan's output topology)
         self.outs = {}            # layout -> the last result in it (out=; LAYOUT may change)
         self.status_base = None   # last "OK ..." status as (head, tail) (_set_ok_status)
-        self.note = None          # the stack warning, as last reported (stack_input.Stack.note)
         self.source_kind = None   # where st.source was read (stack_input: OWN, EVALUATED, CHAIN)
         self.stack_fp = None      # stack_input.settings_fingerprint when st.source was read
         self.upper_key = None     # CHAIN: the last_key of the Smooth FFD above, when read
@@ -306,10 +305,10 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
             return False
         st = _state(ro)
         stack = stack_input.Stack(obj, mod, render and not early, own=own_input)
-        # Vertex groups on the result are for the modifiers below and Apply; with the stack's
-        # geometry as input only Smooth FFD modifiers are below, so they are carried where one
-        # is (it reads them), for render, Apply and Bake, and always without modifiers above.
-        groups = not stack.reads_stack or bool(stack.sffd_below) or render or force
+        # Vertex groups on the result are for the modifiers below and Apply: with the stack's
+        # geometry as input they are carried where a modifier is below (it may read them),
+        # for render, Apply and Bake, and always without modifiers above.
+        groups = not stack.reads_stack or bool(stack.below) or render or force
         gathered = _early_inputs(obj, mod, st, stack, groups) if early else \
             _inputs(obj, mod, st, depsgraph, render, mesh_changed, stack, changed, frame_change,
                     can_evaluate, groups)
@@ -326,11 +325,10 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
             _schedule_settle(now)
         frame = scene_frame(scene, depsgraph)
         frames = result_frames(obj, settings.lattice, frame, stack)
-        note = stack.note()
         if not force and key == st.last_key and _result_matches(ro.data, st):
             # Same inputs as the result holds: it is right for this frame too.
             if st.status_base is not None:
-                _set_ok_status(obj, mod, st, st.status_base, note, frames, frame, scene=scene)
+                _set_ok_status(obj, mod, st, st.status_base, frames, frame, scene=scene)
             return False
         rest, pts, interp, weights = lattice_data
         t0 = time.perf_counter()
@@ -372,7 +370,7 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
         used = res.stats.get("device", backend) if isinstance(res.stats, dict) else backend
         tail = (f"{len(res.triangles)} tris, deform {1e3 * (t1 - t0):.1f} ms, "
                 f"write {1e3 * (t2 - t1):.1f} ms ({normals} normals)")
-        _set_ok_status(obj, mod, st, (f"OK {used}, level {level}", tail), note, frames, frame,
+        _set_ok_status(obj, mod, st, (f"OK {used}, level {level}", tail), frames, frame,
                        wrote_result=True, scene=scene)
         _last_timing[uid(ro)] = {
             "deform_ms": 1e3 * (t1 - t0), "write_ms": 1e3 * (t2 - t1), "normals": normals,
@@ -495,6 +493,7 @@ def _inputs(obj, mod, st, depsgraph, render, mesh_changed, stack, changed, frame
                                     frame_change, can_evaluate, groups)
     else:
         stack_input.set_stack_object(obj, mod, None)   # no input check for the own mesh
+        stack_input.set_input_copy(obj, mod, stack)
         source = _source(obj, settings, st, mesh_changed)
     key = _key(lattice_key, l2o, settings, source, level, backend, exact)
     return settings, level, backend, exact, (rest, pts, interp, weights), l2o, source, key
@@ -570,17 +569,14 @@ def last_timing(obj, mod):
     return _last_timing.get(uid(ro)) if ro is not None else None
 
 
-def _set_ok_status(obj, mod, st, base, note, frames, frame, wrote_result=False, scene=None):
+def _set_ok_status(obj, mod, st, base, frames, frame, wrote_result=False, scene=None):
     """base: (head, tail) of the "OK ..." text; the frame goes between them when the result
     belongs to this frame only (a file opened without the add-on then says which frame it
-    shows), the stack warning (stack_input.Stack.note) and scene warnings after."""
+    shows), and scene warnings after."""
     st.status_base = base
-    if note and note != st.note:   # once per change, not on every update
-        print(f"Smooth FFD [{obj.name} / {mod.name}]: {note}")
-    st.note = note
     head, tail = base
     text = f"{head}, frame {frame:g}, {tail}" if frames != nodegroup.ALWAYS else f"{head}, {tail}"
-    notes = ([note] if note else []) + lock_notes(scene)
+    notes = lock_notes(scene)
     if notes:
         text += "".join(f" \u2014 {n}" for n in notes)
     set_status(obj, mod, text, frames, wrote_result=wrote_result, report=False)

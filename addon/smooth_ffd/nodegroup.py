@@ -18,8 +18,16 @@ where the add-on does not run never shows one frame's result on another frame):
 Layouts (the group's GROUP_TAG value): 1, Backend a text input (Blender 3.4-4.0); 2, Backend a
 menu (4.1+: a menu socket feeding a Menu Switch node, which defines the items); 3 and 4, the
 same with the frame ranges and the bake (Show Result folded into the result's frame range);
-5 and 6, the same with the Stack Object and its input check. Files made with an older layout
-are moved to this Blender's when opened (migrate), keeping every setting.
+5 and 6, the same with the Stack Object and its input check; 7 and 8, the same with the Input
+Copy. Files made with an older layout are moved to this Blender's when opened (migrate),
+keeping every setting.
+
+Input Copy (an int k, 0: off): where other modifiers follow it, the evaluated object shows
+their output, not this modifier's input. While k > 0, the group's passed-through geometry
+carries its input mesh once more as an instance at scale 0 (invisible), translated to
+(0, 0, k) in the object's space so that the add-on finds it among the evaluated instances
+(stack_input.input_copy). Modifiers other than Geometry Nodes operate on the mesh only and
+pass instances on unchanged, so the copy reaches the evaluated object.
 """
 import bpy
 
@@ -29,10 +37,12 @@ GROUP_NAME = "Smooth FFD"
 GROUP_TAG = "smooth_ffd_group"   # custom property marking our group (value: layout version)
 TEXT_LAYOUT, MENU_LAYOUT = 1, 2              # before the frame ranges (files of older add-ons)
 TEXT_FRAMES_LAYOUT, MENU_FRAMES_LAYOUT = 3, 4   # before the Stack Object (older add-ons)
-TEXT_STACK_LAYOUT, MENU_STACK_LAYOUT = 5, 6
-GROUP_LAYOUT = MENU_STACK_LAYOUT if compat.HAS_MENU_SOCKET else TEXT_STACK_LAYOUT
-MENU_LAYOUTS = (MENU_LAYOUT, MENU_FRAMES_LAYOUT, MENU_STACK_LAYOUT)
-STACK_LAYOUTS = (TEXT_STACK_LAYOUT, MENU_STACK_LAYOUT)
+TEXT_STACK_LAYOUT, MENU_STACK_LAYOUT = 5, 6      # before the Input Copy (older add-ons)
+TEXT_COPY_LAYOUT, MENU_COPY_LAYOUT = 7, 8
+GROUP_LAYOUT = MENU_COPY_LAYOUT if compat.HAS_MENU_SOCKET else TEXT_COPY_LAYOUT
+MENU_LAYOUTS = (MENU_LAYOUT, MENU_FRAMES_LAYOUT, MENU_STACK_LAYOUT, MENU_COPY_LAYOUT)
+COPY_LAYOUTS = (TEXT_COPY_LAYOUT, MENU_COPY_LAYOUT)
+STACK_LAYOUTS = (TEXT_STACK_LAYOUT, MENU_STACK_LAYOUT) + COPY_LAYOUTS
 FRAMES_LAYOUTS = (TEXT_FRAMES_LAYOUT, MENU_FRAMES_LAYOUT) + STACK_LAYOUTS
 LAYOUTS = (TEXT_LAYOUT, MENU_LAYOUT) + FRAMES_LAYOUTS
 BACKEND_ITEMS = ("Auto", "CPU", "CUDA")   # the menu's items (inputs.parse_backend reads any case)
@@ -66,9 +76,14 @@ FRAMES_INTERNAL_INPUTS = (
     ("Bake From", 'NodeSocketFloat', NEVER[0], None, None, "Internal: first baked frame - 1/2"),
     ("Bake To", 'NodeSocketFloat', NEVER[1], None, None, "Internal: last baked frame + 1/2"),
 )
-INTERNAL_INPUTS = FRAMES_INTERNAL_INPUTS + (
+STACK_INTERNAL_INPUTS = FRAMES_INTERNAL_INPUTS + (
     ("Stack Object", 'NodeSocketObject', None, None, None,
      "Internal: the vertices of the input the result was computed from (stack_input)"),
+)
+INTERNAL_INPUTS = STACK_INTERNAL_INPUTS + (
+    ("Input Copy", 'NodeSocketInt', 0, None, None,
+     "Internal: nonzero while other modifiers follow: the input also passes as a hidden "
+     "instance (stack_input)"),
 )
 INPUTS = SETTINGS + INTERNAL_INPUTS
 INTERNAL = tuple(name for name, *_ in INTERNAL_INPUTS)
@@ -116,9 +131,10 @@ def _build_group(group_layout=GROUP_LAYOUT):
     menu = group_layout in MENU_LAYOUTS
     frames = group_layout in FRAMES_LAYOUTS
     stack = group_layout in STACK_LAYOUTS
+    copy = group_layout in COPY_LAYOUTS
     compat.new_group_socket(group, 'INPUT', 'NodeSocketGeometry', "Geometry")
-    internal = INTERNAL_INPUTS if stack else FRAMES_INTERNAL_INPUTS if frames else \
-        OLD_INTERNAL_INPUTS
+    internal = INTERNAL_INPUTS if copy else STACK_INTERNAL_INPUTS if stack else \
+        FRAMES_INTERNAL_INPUTS if frames else OLD_INTERNAL_INPUTS
     for name, stype, default, lo, hi, desc in SETTINGS + internal:
         if name == "Backend" and menu:
             stype, default, desc = 'NodeSocketMenu', None, "Auto (CUDA when usable), CPU or CUDA"
@@ -148,13 +164,13 @@ def _build_group(group_layout=GROUP_LAYOUT):
         links.new(info.outputs["Geometry"], true_in)
         links.new(_switch_out(switch), gout.inputs[0])
     else:
-        _frame_switches(group, gin, gout, info, stack)
+        _frame_switches(group, gin, gout, info, stack, copy)
     if menu:
         _backend_menu(group, gin)
     return group
 
 
-def _frame_switches(group, gin, gout, info, stack=False):
+def _frame_switches(group, gin, gout, info, stack=False, copy=False):
     """Source, live result or bake by the frame the depsgraph evaluates (module docstring)."""
     nodes, links = group.nodes, group.links
     time = nodes.new('GeometryNodeInputSceneTime')
@@ -182,7 +198,7 @@ def _frame_switches(group, gin, gout, info, stack=False):
     live = _switch(group, (100, 0))
     cond, false_in, true_in = _switch_sockets(live)
     links.new(show_live, cond)
-    links.new(_out(gin, "Geometry"), false_in)
+    links.new(_input_copy(group, gin) if copy else _out(gin, "Geometry"), false_in)
     links.new(info.outputs["Geometry"], true_in)
     bake_info = nodes.new('GeometryNodeObjectInfo')
     bake_info.transform_space = 'ORIGINAL'   # baked meshes are in the source's space too
@@ -244,6 +260,38 @@ def _stack_matches(group, gin):
     same = _boolean(group, 'AND', (same_count, same_place), (250, 700))
     no_ref = _boolean(group, 'NOT', (has_ref,), (250, 850))
     return _boolean(group, 'OR', (no_ref, same), (450, 800))
+
+
+def _input_copy(group, gin):
+    """Geometry socket: the input, and while Input Copy k > 0 also its mesh as an instance at
+    scale 0 translated to (0, 0, k) (module docstring)."""
+    nodes, links = group.nodes, group.links
+    geo = _out(gin, "Geometry")
+    parts = nodes.new('GeometryNodeSeparateComponents')   # the mesh only, no instances
+    parts.location = (-900, -700)
+    links.new(geo, parts.inputs[0])
+    inst = nodes.new('GeometryNodeGeometryToInstance')
+    inst.location = (-700, -700)
+    links.new(parts.outputs["Mesh"], inst.inputs[0])
+    where = nodes.new('ShaderNodeCombineXYZ')
+    where.location = (-700, -850)
+    links.new(_out(gin, "Input Copy"), where.inputs["Z"])
+    move = nodes.new('GeometryNodeTransform')
+    move.location = (-500, -700)
+    links.new(inst.outputs[0], move.inputs["Geometry"])
+    links.new(where.outputs[0], move.inputs["Translation"])
+    move.inputs["Scale"].default_value = (0.0, 0.0, 0.0)
+    join = nodes.new('GeometryNodeJoinGeometry')
+    join.location = (-300, -650)
+    links.new(geo, join.inputs[0])
+    links.new(move.outputs[0], join.inputs[0])
+    on = _compare(group, 'GREATER_THAN', _out(gin, "Input Copy"), 0, (-500, -550), 'INT')
+    switch = _switch(group, (-100, -600))
+    cond, false_in, true_in = _switch_sockets(switch)
+    links.new(on, cond)
+    links.new(geo, false_in)
+    links.new(join.outputs[0], true_in)
+    return _switch_out(switch)
 
 
 def _domain_size(group, geometry, location):
@@ -320,14 +368,16 @@ def _backend_menu(group, gin):
 def migrate(mod):
     """Moves a modifier using an older layout's group (a file from an older add-on or from
     3.4-4.0) to this Blender's group, keeping every setting; returns True when it did. Only
-    upgrades: text to menu, no frame ranges to frame ranges, no Stack Object to one."""
+    upgrades: text to menu, no frame ranges to frame ranges, no Stack Object (or no Input
+    Copy) to one."""
     old = mod.node_group
     old_layout = layout(old)
     if not is_smooth_ffd_group(old) or old_layout not in LAYOUTS \
             or old_layout == GROUP_LAYOUT \
             or (old_layout in MENU_LAYOUTS and GROUP_LAYOUT not in MENU_LAYOUTS) \
             or (old_layout in FRAMES_LAYOUTS and GROUP_LAYOUT not in FRAMES_LAYOUTS) \
-            or (old_layout in STACK_LAYOUTS and GROUP_LAYOUT not in STACK_LAYOUTS):
+            or (old_layout in STACK_LAYOUTS and GROUP_LAYOUT not in STACK_LAYOUTS) \
+            or (old_layout in COPY_LAYOUTS and GROUP_LAYOUT not in COPY_LAYOUTS):
         return False
     values = {}
     for name, *_ in INPUTS:

@@ -25,10 +25,11 @@ evaluation reads it (source). So:
   after a relations update, so the frame ranges are cleared and the next evaluation reads it
   (defer);
 - a Smooth FFD modifier right below another one takes that one's result mesh as its input
-  (or its bake on a baked frame), converging in stack order within one handler call.
-
-Not served (the input is the object's own mesh then, and the status says so): modifiers
-other than Smooth FFD below this one while something sits above it (Stack.note).
+  (or its bake on a baked frame), converging in stack order within one handler call;
+- with other modifiers below it, the evaluated object shows their output, not this input:
+  the modifier's Input Copy is set (nodegroup), so that the group's passed-through geometry
+  also carries its input mesh as a hidden instance, and the add-on reads that instance
+  (input_copy) in the same evaluations as above: no evaluation more.
 """
 import threading
 
@@ -37,7 +38,7 @@ import numpy as np
 
 from . import inputs, latticeio, nodegroup
 
-OWN, EVALUATED, CHAIN, UNSUPPORTED = "own", "evaluated", "chain", "unsupported"
+OWN, EVALUATED, CHAIN = "own", "evaluated", "chain"
 
 # Modifier types whose output depends on nothing but their settings, the input and the IDs
 # they point at (checked separately): their geometry changes with the frame only when those
@@ -69,17 +70,19 @@ class Stack:
     """Where one Smooth FFD modifier sits in its object's stack, for the viewport or render:
     the enabled modifiers above and below, shape keys, and which input it gets (`kind`):
 
-    OWN          nothing above, no shape keys: the object's own mesh (the fast path)
-    EVALUATED    the evaluated object after an evaluation in which it passed its input through
-    CHAIN        the enabled modifier right above is a Smooth FFD: its result (or bake)
-    UNSUPPORTED  something above, and modifiers other than Smooth FFD below: the own mesh
+    OWN        nothing above, no shape keys: the object's own mesh (the fast path)
+    EVALUATED  the evaluated object after an evaluation in which it passed its input through,
+               or, with modifiers other than Smooth FFD below (`copy`), the input copy it
+               passed through with it
+    CHAIN      the enabled modifier right above is a Smooth FFD: its result (or bake)
     """
 
     def __init__(self, obj, mod, render=False, own=False):
         mods = list(obj.modifiers)
         k = next((i for i, m in enumerate(mods) if m == mod), len(mods))
         self.above = [m for m in mods[:k] if enabled(m, render)]
-        self.below = [m for m in mods[k + 1:] if enabled(m, render)]
+        self.below_all = mods[k + 1:]
+        self.below = [m for m in self.below_all if enabled(m, render)]
         key = obj.data.shape_keys if obj.type == 'MESH' else None
         self.shape_keys = key is not None and len(key.key_blocks) > 0
         last = self.above[-1] if self.above else None
@@ -87,30 +90,19 @@ class Stack:
         self.sffd_below = [m for m in self.below if nodegroup.is_smooth_ffd_modifier(m)]
         self.other_below = [m for m in self.below if not nodegroup.is_smooth_ffd_modifier(m)]
         self.render = render
+        # The Input Copy's number: the modifier's place in the stack, 1-based.
+        self.marker = k + 1
         if own or (not self.above and not self.shape_keys):
             self.kind = OWN
         elif self.upper is not None:
             self.kind = CHAIN
-        elif self.other_below:
-            self.kind = UNSUPPORTED
         else:
             self.kind = EVALUATED
+        self.copy = self.kind == EVALUATED and bool(self.other_below)
 
     @property
     def reads_stack(self):
         return self.kind in (EVALUATED, CHAIN)
-
-    def note(self):
-        """The status warning for a stack it cannot read (None when it reads it)."""
-        if self.kind != UNSUPPORTED:
-            return None
-        names = ", ".join(repr(m.name) for m in self.other_below)
-        what = (f"{len(self.above)} modifier(s)" if self.above else "") + \
-            (" and " if self.above and self.shape_keys else "") + \
-            ("shape keys" if self.shape_keys else "")
-        return (f"warning: {what} above Smooth FFD are ignored (its input is the object's own "
-                f"mesh) while other modifiers follow it ({names}); move those above it or "
-                f"apply them")
 
 
 # --- what the stack above depends on ----------------------------------------------------
@@ -372,8 +364,8 @@ def source(obj, mod, settings, st, stack, depsgraph, changed, frame_change, can_
     have changed; the modifier's Stack Object follows it. groups: read every vertex group
     (to carry them; a Python loop over the vertices), else only the Vertex Group setting's."""
     from . import meshio, modifier_update
-    if nodegroup.layout(mod.node_group) not in nodegroup.STACK_LAYOUTS:
-        nodegroup.migrate(mod)   # a group of an older add-on: no Stack Object input yet
+    if nodegroup.layout(mod.node_group) != nodegroup.GROUP_LAYOUT:
+        nodegroup.migrate(mod)   # a group of an older add-on: no Stack Object or Input Copy
     fp = settings_fingerprint(obj, stack)
     groups = groups or bool(settings.vertex_group)
     setting = (settings.vertex_group, settings.invert, groups)
@@ -383,17 +375,23 @@ def source(obj, mod, settings, st, stack, depsgraph, changed, frame_change, can_
     if stack.kind == CHAIN:
         mesh, names, token, shown_by = _upper_output(obj, stack.upper, depsgraph)
         set_stack_object(obj, mod, shown_by)
+        set_input_copy(obj, mod, stack)
         if same and token is not None and st.upper_key == token:
             return st.source
         mesh_fp = None
     else:
-        mesh, mesh_fp = _evaluated_input(obj, mod, ro, st, stack, depsgraph, changed,
-                                         frame_change, can_evaluate, same)
-        if mesh is None:
-            return st.source
         names, token = [g.name for g in obj.vertex_groups], None
     group_index = names.index(settings.vertex_group) if settings.vertex_group in names else None
-    src = meshio.SourceMesh(mesh, group_index, settings.invert, names if groups else ())
+
+    def read(mesh):
+        return meshio.SourceMesh(mesh, group_index, settings.invert, names if groups else ())
+    if stack.kind == CHAIN:
+        src = read(mesh)
+    else:
+        src, mesh_fp = _evaluated_input(obj, mod, ro, st, stack, depsgraph, changed,
+                                        frame_change, can_evaluate, same, read)
+        if src is None:
+            return st.source
     counters["reads"] += 1
     src.keep_normals_of(st.source)
     if stack.kind == EVALUATED and nodegroup.layout(mod.node_group) in nodegroup.STACK_LAYOUTS:
@@ -429,13 +427,15 @@ def _upper_output(obj, upper, depsgraph):
 
 
 def _evaluated_input(obj, mod, ro, st, stack, depsgraph, changed, frame_change,
-                     can_evaluate, same):
-    """(mesh, its fingerprint) of the evaluated object where this modifier and every Smooth
-    FFD below it passed their input through: the stack's geometry here; (None, None) when the
-    last reading still holds. Where the evaluation showed a result (the group found the input
-    at the Stack Object's vertices) and something its check does not see may have changed
-    (`triggered`: the mesh's other data, settings above), the input is read through one more
-    evaluation (force_passthrough, outside handlers) or on the next one (defer)."""
+                     can_evaluate, same, read):
+    """(read(mesh), its fingerprint) for the stack's geometry here: the evaluated object where
+    this modifier and every Smooth FFD below it passed their input through, or with other
+    modifiers below, the input copy this one passed through (input_copy); (None, None) when
+    the last reading still holds. Where the evaluation showed a result (the group found the
+    input at the Stack Object's vertices) and something its check does not see may have
+    changed (`triggered`: the mesh's other data, settings above), the input is read through
+    one more evaluation (force_passthrough, outside handlers) or on the next one (defer).
+    Turning the Input Copy on or off is such a change too."""
     from . import handlers, inputs as inp, modifier_update
     frame = modifier_update.scene_frame(depsgraph=depsgraph)
     if any(handlers.in_bake(m, frame) for m in stack.sffd_below):
@@ -446,21 +446,66 @@ def _evaluated_input(obj, mod, ro, st, stack, depsgraph, changed, frame_change,
                                 for m in mods) if r is not None]
     # A Smooth FFD above wrote since the evaluation: the stack here is not what was evaluated.
     stale = any((obj.as_pointer(), m.name) in _wrote for m in stack.above)
-    mesh = obj.evaluated_get(depsgraph).data
-    if not stale and not shows_result(mesh, results):
-        return mesh, mesh_fingerprint(obj.data)     # the input, passed through
-    if not stale and same and not _needs_reading(obj, st, stack, changed, frame_change):
-        return None, None
+    switched = set_input_copy(obj, mod, stack)
+    if not stale and not switched:
+        got = _passed_through(obj, stack, depsgraph, results, read)
+        if got is not None:
+            return got, mesh_fingerprint(obj.data)
+        if same and not _needs_reading(obj, st, stack, changed, frame_change):
+            return None, None
     if not can_evaluate:
         defer(obj, mods)
     force_passthrough(obj, mods, depsgraph)
     for m in stack.above:
         _wrote.discard((obj.as_pointer(), m.name))
-    mesh = obj.evaluated_get(depsgraph).data
-    if shows_result(mesh, results):
+    got = _passed_through(obj, stack, depsgraph, results, read)
+    if got is None:
         raise inp.SmoothFFDError("the stack's geometry at this modifier could not be read "
                                  "(a result is still shown)")
-    return mesh, mesh_fingerprint(obj.data)
+    return got, mesh_fingerprint(obj.data)
+
+
+def _passed_through(obj, stack, depsgraph, results, read):
+    """read(the stack's geometry here) when the last evaluation passed it through, else
+    None."""
+    if stack.copy:
+        return input_copy(obj, stack.marker, depsgraph, read)
+    mesh = obj.evaluated_get(depsgraph).data
+    return None if shows_result(mesh, results) else read(mesh)
+
+
+def set_input_copy(obj, mod, stack):
+    """Sets the modifier's Input Copy: its place in the stack while other modifiers follow it
+    (viewport or render), else 0. True when that changed it (the group's output changes on
+    the next evaluation)."""
+    from . import compat
+    if nodegroup.layout(mod.node_group) not in nodegroup.COPY_LAYOUTS:
+        return False
+    want = stack.marker if stack.kind == EVALUATED and any(
+        not nodegroup.is_smooth_ffd_modifier(m) and (m.show_viewport or m.show_render)
+        for m in stack.below_all) else 0
+    if compat.get_modifier_input(mod, "Input Copy") == want:
+        return False
+    compat.set_modifier_input(mod, "Input Copy", want)
+    obj.update_tag()
+    return True
+
+
+def input_copy(obj, marker, depsgraph, read):
+    """read(mesh) of the input copy that the Smooth FFD modifier at 1-based place `marker`
+    passed through in the last evaluation (nodegroup: an instance of its input mesh at scale
+    0, translated to (0, 0, marker) in the object's space), or None when it did not (it
+    showed a result). The instance's mesh lives while the depsgraph's instance iterator is on
+    it, so it is read there."""
+    inverse = obj.evaluated_get(depsgraph).matrix_world.inverted_safe()
+    for inst in depsgraph.object_instances:
+        if not inst.is_instance or inst.parent is None or inst.parent.original != obj or \
+                inst.object is None or inst.object.type != 'MESH':
+            continue
+        x, y, z = inverse @ inst.matrix_world.translation
+        if abs(x) < 0.25 and abs(y) < 0.25 and abs(z - marker) < 0.25:
+            return read(inst.object.data)
+    return None
 
 
 def _needs_reading(obj, st, stack, changed, frame_change):

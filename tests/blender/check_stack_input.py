@@ -11,7 +11,8 @@ animation.
 - relative shape keys with an animated value, and a value changed on the same frame;
 - two Smooth FFD modifiers in a row against two Lattice modifiers (the lower one's Vertex
   Group read from the upper one's result);
-- modifiers other than Smooth FFD below it: the object's own mesh, and the status says so;
+- modifiers other than Smooth FFD below it (Subdivision Surface, a Displace weighted by a
+  vertex group): the posed input, every frame, and they get the result;
 - a render reads the render stack (a Subdivision Surface whose render level differs);
 - an edit the group's input check misses, read on the next evaluation; the check without the
   add-on; Apply (the own mesh, as Blender's Apply of a modifier that is not first);
@@ -354,26 +355,101 @@ def test_two_smooth_ffd():
     parity("two in a row: upper lattice edited", a, b, lat2, [m1, m2])
 
 
-def test_unsupported_below():
-    """Armature above and Subdivision Surface below: the input is the object's own mesh (the
-    rest pose), and the status says why."""
+def _below(obj, ref=None):
+    """The modifiers below Smooth FFD in test_modifiers_below: Subdivision Surface, and a
+    Displace weighted by a vertex group (it reads the groups carried onto the result)."""
+    obj.modifiers.new("Subsurf", 'SUBSURF').levels = 1
+    d = obj.modifiers.new("Displace", 'DISPLACE')
+    d.strength, d.vertex_group = 0.2, "arm.L"
+
+
+def _stack_below_matches(name, a, ro, tol=1e-6):
+    """A's evaluated mesh against the same modifiers below applied to a copy of its Smooth FFD
+    result in another object (an independent evaluation of what should follow it)."""
+    d = T.link(bpy.data.objects.new("below_ref", ro.data.copy()))
+    _below(d)
+    got, exp = T.positions(evaluated(a)), T.positions(evaluated(d))
+    err = float(np.abs(got - exp).max()) if got.shape == exp.shape else np.inf
+    T.check(name, err <= tol, f"err {err:.1e}, {len(got)} vs {len(exp)} vertices")
+    mesh = d.data
+    bpy.data.objects.remove(d)
+    bpy.data.meshes.remove(mesh)
+
+
+def test_modifiers_below():
+    """Armature above, Subdivision Surface and a Displace weighted by a vertex group below:
+    Smooth FFD deforms the posed geometry (its result against Lattice at the same position,
+    every frame), and what follows it gets its result (against the same modifiers applied to
+    the result in another object); the input copy is read in the frame's first evaluation."""
     T.clear()
     rig, a, b = rig_pair(1)
     lat = C.lattice_around([a])
-    b.modifiers.remove(b.modifiers["Armature"])   # B: the rest pose, as A's own mesh
     with_lattice(b, lat)
-    mod = smooth_ffd.add_smooth_ffd(a, lat, viewport_level=LEVEL)
-    a.modifiers.new("Subsurf", 'SUBSURF').levels = 1
-    bpy.context.scene.frame_set(3)
+    mod = smooth_ffd.add_smooth_ffd(a, lat, viewport_level=LEVEL, render_level=LEVEL)
+    _below(a)
+    sc = bpy.context.scene
+    sc.frame_set(FRAMES[0])
     T.update()
-    status = smooth_ffd.status(mod)
-    T.check("other modifiers below: status warns", status.startswith("OK") and
-            "warning: 1 modifier(s) above Smooth FFD are ignored" in status and
-            "'Subsurf'" in status, status)
-    got = T.positions(modifier_update.result_object(a, mod, create=False).data)
-    exp = T.positions(evaluated(b))
-    err = float(np.abs(got[:len(exp)] - exp).max()) / T.lattice_size(a, lat)
-    T.check("other modifiers below: the object's own mesh", err <= TOL, f"err {err:.2e}")
+    ro = modifier_update.result_object(a, mod, create=False)
+    size = T.lattice_size(a, lat)
+    before = reads()
+    for f in FRAMES[1:]:
+        sc.frame_set(f)
+        got, exp = T.positions(ro.data), T.positions(evaluated(b))
+        err = float(np.abs(got[:len(exp)] - exp).max()) / size \
+            if len(got) > len(exp) else np.inf
+        status = smooth_ffd.status(mod)
+        T.check(f"modifiers below: frame {f} against Lattice", err <= TOL and
+                status.startswith("OK") and "warning" not in status,
+                f"err {err:.2e}, {status[:80]}")
+        if f in (2, FRAMES[-1]):
+            _stack_below_matches(f"modifiers below: frame {f}, they get the result", a, ro)
+    after = reads()
+    T.check("modifiers below: one reading a frame, none forced or deferred",
+            after["reads"] - before["reads"] == len(FRAMES) - 1
+            and after["forced"] == before["forced"] and after["deferred"] == before["deferred"],
+            f"{before} -> {after}")
+    T.check("modifiers below: Input Copy set to the modifier's place",
+            compat.get_modifier_input(mod, "Input Copy") == 2,
+            str(compat.get_modifier_input(mod, "Input Copy")))
+    # Same frame: a pose edit, then a lattice edit.
+    rig.pose.bones["arm.L"].rotation_euler = (0.0, 0.9, 0.0)
+    T.update()
+    parity_err = float(np.abs(T.positions(ro.data)[:len(b.data.vertices)] -
+                              T.positions(evaluated(b))).max()) / size
+    T.check("modifiers below: pose edit on the same frame", parity_err <= TOL,
+            f"err {parity_err:.2e}")
+    lat.data.points[21].co_deform.z += 0.15
+    T.update()
+    parity_err = float(np.abs(T.positions(ro.data)[:len(b.data.vertices)] -
+                              T.positions(evaluated(b))).max()) / size
+    T.check("modifiers below: lattice edit", parity_err <= TOL, f"err {parity_err:.2e}")
+    _stack_below_matches("modifiers below: after the edits, they get the result", a, ro)
+    # The result shown: no input copy left among the evaluated instances.
+    dg = bpy.context.evaluated_depsgraph_get()
+    T.check("modifiers below: no input copy once the result shows",
+            stack_input.input_copy(a, 2, dg, lambda m: True) is None)
+    # A bake (render level = viewport level here) goes through the modifiers below as well.
+    live = {}
+    for f in (2, 3):
+        sc.frame_set(f)
+        live[f] = T.positions(evaluated(a))
+    smooth_ffd.bake_smooth_ffd(a, mod, 2, 3)
+    for f in (3, 2):
+        sc.frame_set(f)
+        got = T.positions(evaluated(a))
+        err = float(np.abs(got - live[f]).max()) if got.shape == live[f].shape else np.inf
+        T.check(f"modifiers below: baked frame {f} equals the live one", err <= 1e-6,
+                f"err {err:.1e}")
+    smooth_ffd.clear_bake(a, mod)
+    # The modifiers below removed: back to the evaluated object, the copy turned off.
+    for name in ("Subsurf", "Displace"):
+        a.modifiers.remove(a.modifiers[name])
+    T.update()
+    smooth_ffd.update(a)
+    parity("modifiers below removed: the evaluated object", a, b, lat, [mod])
+    T.check("modifiers below removed: Input Copy 0",
+            compat.get_modifier_input(mod, "Input Copy") == 0)
 
 
 def test_render_stack():
@@ -417,6 +493,20 @@ def test_render_stack():
     view = T.positions(evaluated(a))
     T.check("after the render: the viewport stack again", len(view) < len(got) and
             smooth_ffd.status(mod).startswith("OK"), f"{len(view)} vs {len(got)}")
+    # A modifier below (the input copy): the render reads the render stack through it too.
+    a.modifiers.new("Displace", 'DISPLACE').strength = 0.1
+    T.update()
+    seen.clear()
+    bpy.app.handlers.render_post.append(grab)
+    try:
+        bpy.ops.render.render(write_still=False)
+    finally:
+        bpy.app.handlers.render_post.remove(grab)
+    got = seen.get("pos")
+    err = float(np.abs(got[:len(exp)] - exp).max()) / T.lattice_size(a, lat) \
+        if got is not None and len(got) > len(exp) else np.inf
+    T.check("render with a modifier below: the render stack", err <= TOL,
+            f"err {err:.2e}, {len(exp)} vertices at the render level")
 
 
 def test_edits_the_check_misses():
@@ -620,6 +710,13 @@ def test_evaluations_per_frame():
     lat = C.lattice_around([a])
     with_lattice(b, lat)
     smooth_ffd.add_smooth_ffd(a, lat, viewport_level=LEVEL)
+    # The same with modifiers below: C (Smooth FFD) against D (Lattice).
+    c = C.character_object(2, "C", rig)
+    d = C.character_object(2, "D", rig)
+    smooth_ffd.add_smooth_ffd(c, lat, viewport_level=LEVEL)
+    with_lattice(d, lat)
+    for obj in (c, d):
+        obj.modifiers.new("Subsurf", 'SUBSURF').levels = 1
     path = os.path.join(tempfile.mkdtemp(), "count.blend")
     bpy.ops.wm.save_as_mainfile(filepath=path)
     bpy.app.debug_depsgraph_eval = True
@@ -627,7 +724,8 @@ def test_evaluations_per_frame():
         bpy.ops.wm.open_mainfile(filepath=path)
         sc = bpy.context.scene
         sc.frame_set(FRAMES[0])
-        per_frame = [_counted(lambda f=f: sc.frame_set(f), ("A", "B")) for f in FRAMES[1:]]
+        per_frame = [_counted(lambda f=f: sc.frame_set(f), ("A", "B", "C", "D"))
+                     for f in FRAMES[1:]]
         rig = bpy.data.objects["rig"]
 
         def pose():
@@ -648,6 +746,12 @@ def test_evaluations_per_frame():
           f"{[(c['A'], c['B']) for c in per_frame]}; pose edit {posed}; lattice edit {edited}")
     T.check("playback: at most one more evaluation of the stack above than Lattice",
             all(c["B"] >= 1 for c in per_frame) and max(extra) <= 1, str(per_frame))
+    extra_below = [c["C"] - c["D"] for c in per_frame]
+    print(f"with Subdivision Surface below (Smooth FFD object, Lattice object): "
+          f"{[(c['C'], c['D']) for c in per_frame]}")
+    T.check("playback with modifiers below: at most one more evaluation than Lattice",
+            all(c["D"] >= 1 for c in per_frame) and max(extra_below) <= 1,
+            str([(c['C'], c['D']) for c in per_frame]))
     T.check("pose edit on the same frame: at most two more", posed["A"] - posed["B"] <= 2,
             str(posed))
     T.check("lattice edit: no more than before", edited["A"] <= 2 and edited["B"] >= 1,
@@ -657,7 +761,7 @@ def test_evaluations_per_frame():
 def main():
     T.setup()
     for fn in (test_armature, test_split_normals, test_modifiers_above, test_shape_keys,
-               test_two_smooth_ffd, test_unsupported_below, test_render_stack,
+               test_two_smooth_ffd, test_modifiers_below, test_render_stack,
                test_edits_the_check_misses, test_check_without_addon, test_apply,
                test_linked_rig_override, test_fbx_round_trip, test_evaluations_per_frame):
         T.run(fn.__name__, fn)

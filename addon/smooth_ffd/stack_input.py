@@ -495,15 +495,37 @@ def input_copy(obj, marker, depsgraph, read):
     """read(mesh) of the input copy that the Smooth FFD modifier at 1-based place `marker`
     passed through in the last evaluation (nodegroup: an instance of its input mesh at scale
     0, translated to (0, 0, marker) in the object's space), or None when it did not (it
-    showed a result). The instance's mesh lives while the depsgraph's instance iterator is on
-    it, so it is read there."""
-    inverse = obj.evaluated_get(depsgraph).matrix_world.inverted_safe()
+    showed a result). 5.0+: from the evaluated object's geometry set; before: among the
+    depsgraph's instances, whose mesh lives while the iterator is on it (read there)."""
+    from . import compat
+    ob_eval = obj.evaluated_get(depsgraph)
+
+    def is_copy(x, y, z):
+        return abs(x) < 0.25 and abs(y) < 0.25 and abs(z - marker) < 0.25
+    if compat.HAS_EVALUATED_GEOMETRY:
+        geometry = ob_eval.evaluated_geometry()
+        points = geometry.instances_pointcloud()
+        if points is None:
+            return None
+        n = len(points.points)
+        xf = np.empty(16 * n, np.float32)     # column-major 4x4 a point
+        points.attributes["instance_transform"].data.foreach_get("value", xf)
+        ref = np.empty(n, np.int32)
+        points.attributes[".reference_index"].data.foreach_get("value", ref)
+        refs = geometry.instance_references()
+        for i, m in enumerate(xf.reshape(n, 4, 4)):
+            if is_copy(*m[3, :3]) and not m[:3, :3].any():
+                target = refs[ref[i]]
+                mesh = getattr(target, "mesh", None)
+                if mesh is not None:
+                    return read(mesh)
+        return None
+    inverse = ob_eval.matrix_world.inverted_safe()
     for inst in depsgraph.object_instances:
         if not inst.is_instance or inst.parent is None or inst.parent.original != obj or \
                 inst.object is None or inst.object.type != 'MESH':
             continue
-        x, y, z = inverse @ inst.matrix_world.translation
-        if abs(x) < 0.25 and abs(y) < 0.25 and abs(z - marker) < 0.25:
+        if is_copy(*(inverse @ inst.matrix_world.translation)):
             return read(inst.object.data)
     return None
 

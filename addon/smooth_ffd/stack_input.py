@@ -460,6 +460,13 @@ def _evaluated_input(obj, mod, ro, st, stack, depsgraph, changed, frame_change,
         _wrote.discard((obj.as_pointer(), m.name))
     got = _passed_through(obj, stack, depsgraph, results, read)
     if got is None:
+        nodes = [m.name for m in stack.other_below if m.type == 'NODES']
+        if stack.copy and nodes:
+            raise inp.SmoothFFDError(
+                "the stack's geometry at this modifier could not be read: its input copy (an "
+                "instance) did not reach the evaluated object, so a Geometry Nodes modifier "
+                f"below ({', '.join(map(repr, nodes))}) drops or realizes instances; move it "
+                "above Smooth FFD or apply it")
         raise inp.SmoothFFDError("the stack's geometry at this modifier could not be read "
                                  "(a result is still shown)")
     return got, mesh_fingerprint(obj.data)

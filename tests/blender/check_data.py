@@ -375,6 +375,28 @@ def test_modifiers_above():
     T.check("lattice edit with a modifier below: no new reading, status OK",
             stack_input.counters["reads"] == reads and smooth_ffd.status(mod).startswith("OK"),
             f"{stack_input.counters}: {smooth_ffd.status(mod)}")
+    # A Geometry Nodes modifier below that keeps only the mesh drops the input copy: a clear
+    # error naming it, and the object shows its input (no result).
+    drop = bpy.data.node_groups.new("mesh only", 'GeometryNodeTree')
+    compat.new_group_socket(drop, 'INPUT', 'NodeSocketGeometry', "Geometry")
+    compat.new_group_socket(drop, 'OUTPUT', 'NodeSocketGeometry', "Geometry")
+    gi, go = drop.nodes.new('NodeGroupInput'), drop.nodes.new('NodeGroupOutput')
+    parts = drop.nodes.new('GeometryNodeSeparateComponents')
+    drop.links.new(gi.outputs[0], parts.inputs[0])
+    drop.links.new(parts.outputs["Mesh"], go.inputs[0])
+    gn = obj.modifiers.new("Mesh Only", 'NODES')
+    gn.node_group = drop
+    T.update()
+    smooth_ffd.update(obj)
+    status = smooth_ffd.status(mod)
+    T.check("a Geometry Nodes modifier below dropping instances: error naming it",
+            status.startswith("Error") and "'Mesh Only'" in status and "instances" in status,
+            status)
+    obj.modifiers.remove(gn)
+    T.update()
+    smooth_ffd.update(obj)
+    T.check("that modifier removed: OK again", smooth_ffd.status(mod).startswith("OK") and
+            st.source.num_vertices > len(obj.data.vertices), smooth_ffd.status(mod))
     wave.show_viewport = wave.show_render = False
     T.update()
     smooth_ffd.update(obj)

@@ -27,7 +27,9 @@ their output, not this modifier's input. While k > 0, the group's passed-through
 carries its input mesh once more as an instance at scale 0 (invisible), translated to
 (0, 0, k) in the object's space so that the add-on finds it among the evaluated instances
 (stack_input.input_copy). Modifiers other than Geometry Nodes operate on the mesh only and
-pass instances on unchanged, so the copy reaches the evaluated object.
+pass instances on unchanged, and so does this group where it shows a result or a bake (in
+layouts 7 and 8 the input's instances go on beside it, as Blender's Lattice modifier leaves
+them), so the copy reaches the evaluated object.
 """
 import bpy
 
@@ -198,8 +200,16 @@ def _frame_switches(group, gin, gout, info, stack=False, copy=False):
     live = _switch(group, (100, 0))
     cond, false_in, true_in = _switch_sockets(live)
     links.new(show_live, cond)
-    links.new(_input_copy(group, gin) if copy else _out(gin, "Geometry"), false_in)
-    links.new(info.outputs["Geometry"], true_in)
+    parts = None
+    if copy:
+        # The input's parts other than its mesh (instances: an input copy of a Smooth FFD
+        # above, or the user's) go on beside the result or bake, as with Blender's Lattice
+        # modifier, which deforms the mesh only.
+        parts = nodes.new('GeometryNodeSeparateComponents')
+        parts.location = (-900, -700)
+        links.new(_out(gin, "Geometry"), parts.inputs[0])
+    links.new(_input_copy(group, gin, parts) if copy else _out(gin, "Geometry"), false_in)
+    links.new(_with_instances(group, info.outputs["Geometry"], parts, (-150, -250)), true_in)
     bake_info = nodes.new('GeometryNodeObjectInfo')
     bake_info.transform_space = 'ORIGINAL'   # baked meshes are in the source's space too
     bake_info.location = (-150, -400)
@@ -208,7 +218,8 @@ def _frame_switches(group, gin, gout, info, stack=False, copy=False):
     cond, false_in, true_in = _switch_sockets(baked)
     links.new(in_bake, cond)
     links.new(_switch_out(live), false_in)
-    links.new(bake_info.outputs["Geometry"], true_in)
+    links.new(_with_instances(group, bake_info.outputs["Geometry"], parts, (-150, -500)),
+              true_in)
     links.new(_switch_out(baked), gout.inputs[0])
 
 
@@ -262,14 +273,24 @@ def _stack_matches(group, gin):
     return _boolean(group, 'OR', (no_ref, same), (450, 800))
 
 
-def _input_copy(group, gin):
-    """Geometry socket: the input, and while Input Copy k > 0 also its mesh as an instance at
-    scale 0 translated to (0, 0, k) (module docstring)."""
+def _with_instances(group, geometry, parts, location):
+    """Geometry socket: `geometry` joined with the instances of the input (parts: the
+    input's Separate Components node; None: `geometry` alone)."""
+    if parts is None:
+        return geometry
+    join = group.nodes.new('GeometryNodeJoinGeometry')
+    join.location = location
+    group.links.new(geometry, join.inputs[0])
+    group.links.new(parts.outputs["Instances"], join.inputs[0])
+    return join.outputs[0]
+
+
+def _input_copy(group, gin, parts):
+    """Geometry socket: the input, and while Input Copy k > 0 also its mesh (parts: the
+    input's Separate Components node) as an instance at scale 0 translated to (0, 0, k)
+    (module docstring)."""
     nodes, links = group.nodes, group.links
     geo = _out(gin, "Geometry")
-    parts = nodes.new('GeometryNodeSeparateComponents')   # the mesh only, no instances
-    parts.location = (-900, -700)
-    links.new(geo, parts.inputs[0])
     inst = nodes.new('GeometryNodeGeometryToInstance')
     inst.location = (-700, -700)
     links.new(parts.outputs["Mesh"], inst.inputs[0])

@@ -222,7 +222,10 @@ class Deferred(Exception):
     """The stack's geometry is read on the next evaluation (defer)."""
 
 
-_wrote = set()   # (object as_pointer, modifier name) that wrote a result in this round
+# (object as_pointer, modifier name) of Smooth FFD modifiers that, in this round, wrote a
+# result or were made to pass their input through (force_passthrough): what the last
+# evaluation showed below them is not what the next one shows.
+_wrote = set()
 
 
 def begin_pass():
@@ -351,6 +354,7 @@ def force_passthrough(obj, mods, depsgraph):
     from . import handlers, modifier_update
     for m in mods:
         modifier_update.set_frames(m, "Result", nodegroup.NEVER)
+        _wrote.add((obj.as_pointer(), m.name))
     obj.update_tag()
     counters["forced"] += 1
     with handlers.muted():
@@ -438,13 +442,17 @@ def _evaluated_input(obj, mod, ro, st, stack, depsgraph, changed, frame_change,
     Turning the Input Copy on or off is such a change too."""
     from . import handlers, inputs as inp, modifier_update
     frame = modifier_update.scene_frame(depsgraph=depsgraph)
-    if any(handlers.in_bake(m, frame) for m in stack.sffd_below):
+    # Without the input copy the evaluated object must show this input, so every Smooth FFD
+    # below passes it through too; the copy passes Smooth FFD modifiers below (nodegroup)
+    # whether they show a result, a bake or their input.
+    mods = [mod] if stack.copy else [mod] + stack.sffd_below
+    if not stack.copy and any(handlers.in_bake(m, frame) for m in stack.sffd_below):
         raise inp.SmoothFFDError("a Smooth FFD modifier below is baked on this frame: the "
                                  "stack's geometry here is not shown (clear its bake)")
-    mods = [mod] + stack.sffd_below
     results = [r.data for r in (modifier_update.result_object(obj, m, create=False)
                                 for m in mods) if r is not None]
-    # A Smooth FFD above wrote since the evaluation: the stack here is not what was evaluated.
+    # A Smooth FFD above wrote, or passed its input through, since the evaluation: the stack
+    # here is not what the next evaluation shows.
     stale = any((obj.as_pointer(), m.name) in _wrote for m in stack.above)
     switched = set_input_copy(obj, mod, stack)
     if not stale and not switched:

@@ -12,7 +12,8 @@ animation.
 - two Smooth FFD modifiers in a row against two Lattice modifiers (the lower one's Vertex
   Group read from the upper one's result);
 - modifiers other than Smooth FFD below it (Subdivision Surface, a Displace weighted by a
-  vertex group): the posed input, every frame, and they get the result;
+  vertex group): the posed input, every frame, and they get the result; two Smooth FFD
+  with Subdivision Surface between them and a Displace below;
 - a render reads the render stack (a Subdivision Surface whose render level differs);
 - an edit the group's input check misses, read on the next evaluation; the check without the
   add-on; Apply (the own mesh, as Blender's Apply of a modifier that is not first);
@@ -452,6 +453,76 @@ def test_modifiers_below():
             compat.get_modifier_input(mod, "Input Copy") == 0)
 
 
+def test_modifiers_between():
+    """Armature, Smooth FFD 1, Subdivision Surface, Smooth FFD 2, Displace: both read the
+    stack through their input copies (places 2 and 4) in the same evaluations. Smooth FFD 1
+    against Lattice on B; Smooth FFD 2 against an independent evaluation of its position:
+    an object D holding Smooth FFD 1's result with Subdivision Surface and Lattice 2 (D's
+    Lattice output is what Smooth FFD 2 must give for its first V vertices)."""
+    T.clear()
+    rig, a, b = rig_pair(1)
+    lat1 = C.lattice_around([a], name="lat1")
+    lat2 = C.lattice_around([a], shape=(3, 3, 3), margin=0.3, jitter=0.1, seed=7, name="lat2")
+    with_lattice(b, lat1)
+    m1 = smooth_ffd.add_smooth_ffd(a, lat1, viewport_level=LEVEL, render_level=LEVEL,
+                                   name="Smooth FFD 1")
+    a.modifiers.new("Subsurf", 'SUBSURF').levels = 1
+    m2 = smooth_ffd.add_smooth_ffd(a, lat2, viewport_level=LEVEL, render_level=LEVEL,
+                                   name="Smooth FFD 2")
+    a.modifiers.new("Displace", 'DISPLACE').strength = 0.1
+    sc = bpy.context.scene
+    sc.frame_set(FRAMES[0])
+    T.update()
+    r1 = modifier_update.result_object(a, m1, create=False)
+    r2 = modifier_update.result_object(a, m2, create=False)
+    for f in (2, 4, FRAMES[-1]):
+        deferred = stack_input.counters["deferred"]
+        sc.frame_set(f)
+        # Inside frame_change_post the upper one writes its result, and the lower one's input
+        # (below it) is shown only by the next evaluation: it waits for it (defer), showing
+        # its input meanwhile; in a window a timer runs that update at once.
+        T.check(f"modifiers between: frame {f}, the lower one waits for the next update",
+                stack_input.counters["deferred"] == deferred + 1 and
+                modifier_update.get_frames(m1, "Result") == (f - 0.5, f + 0.5) and
+                modifier_update.get_frames(m2, "Result") == (1.0, 0.0),
+                f"{stack_input.counters}, {modifier_update.get_frames(m2, 'Result')}")
+        smooth_ffd.update(a)   # what the timer runs
+        statuses = [smooth_ffd.status(m) for m in (m1, m2)]
+        got, got2 = T.positions(r1.data), T.positions(r2.data)   # before any evaluation
+        exp = T.positions(evaluated(b))
+        e1 = float(np.abs(got[:len(exp)] - exp).max()) / T.lattice_size(a, lat1) \
+            if len(got) > len(exp) else np.inf
+        d = T.link(bpy.data.objects.new("between_ref", r1.data.copy()))
+        d.modifiers.new("Subsurf", 'SUBSURF').levels = 1
+        with_lattice(d, lat2)
+        exp2 = T.positions(evaluated(d))
+        e2 = float(np.abs(got2[:len(exp2)] - exp2).max()) / T.lattice_size(a, lat2) \
+            if len(got2) > len(exp2) else np.inf
+        mesh = d.data
+        bpy.data.objects.remove(d)
+        bpy.data.meshes.remove(mesh)
+        T.check(f"modifiers between: frame {f}, Smooth FFD 1 against Lattice, Smooth FFD 2 "
+                f"against Lattice on 1's result + Subsurf", e1 <= TOL and e2 <= TOL and
+                all(s.startswith("OK") and f"frame {f}," in s for s in statuses),
+                f"err {e1:.2e}, {e2:.2e}; {[s[:40] for s in statuses]}")
+    # A bake of the lower one evaluates as often as it needs: frame 3 baked equals frame 3
+    # computed live (with the update the timer would run).
+    sc.frame_set(3)
+    smooth_ffd.update(a)
+    live = T.positions(evaluated(a))
+    smooth_ffd.bake_smooth_ffd(a, m2, 3, 3)
+    sc.frame_set(2)
+    sc.frame_set(3)
+    got = T.positions(evaluated(a))
+    err = float(np.abs(got - live).max()) if got.shape == live.shape else np.inf
+    T.check("modifiers between: the lower one baked on frame 3 equals its live result",
+            err <= 1e-6, f"err {err:.1e}, {len(got)} vs {len(live)} vertices")
+    smooth_ffd.clear_bake(a, m2)
+    T.check("modifiers between: Input Copy 2 and 4",
+            (compat.get_modifier_input(m1, "Input Copy"),
+             compat.get_modifier_input(m2, "Input Copy")) == (2, 4))
+
+
 def test_render_stack():
     """A render reads the render stack: Subdivision Surface above with render level 1,
     viewport level 0."""
@@ -761,7 +832,8 @@ def test_evaluations_per_frame():
 def main():
     T.setup()
     for fn in (test_armature, test_split_normals, test_modifiers_above, test_shape_keys,
-               test_two_smooth_ffd, test_modifiers_below, test_render_stack,
+               test_two_smooth_ffd, test_modifiers_below, test_modifiers_between,
+               test_render_stack,
                test_edits_the_check_misses, test_check_without_addon, test_apply,
                test_linked_rig_override, test_fbx_round_trip, test_evaluations_per_frame):
         T.run(fn.__name__, fn)

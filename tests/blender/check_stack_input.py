@@ -405,6 +405,15 @@ def test_modifiers_below():
                 f"err {err:.2e}, {status[:80]}")
         if f in (2, FRAMES[-1]):
             _stack_below_matches(f"modifiers below: frame {f}, they get the result", a, ro)
+    # What comes with the posed geometry through the copy: UVs and material indices.
+    rm, eb = ro.data, evaluated(b)
+    d_uv, n = at_source_corners(rm, eb, uvs(rm, "UVMap"), uvs(eb, "UVMap"))
+    T.check("modifiers below: UV map from the stack at source corners", d_uv <= 1e-6,
+            f"{d_uv:.1e} over {n}")
+    fa = np.empty(len(rm.polygons), np.int32)
+    rm.attributes[modifier_update.meshio.SOURCE_FACE_ATTRIBUTE].data.foreach_get("value", fa)
+    T.check("modifiers below: material indices from the stack",
+            np.array_equal(materials(rm), materials(eb)[fa]))
     after = reads()
     T.check("modifiers below: one reading a frame, none forced or deferred",
             after["reads"] - before["reads"] == len(FRAMES) - 1

@@ -102,9 +102,17 @@ print(json.dumps(report))
 '''
 
 
+def _sigint_default():
+    """Children get SIGINT's default disposition, as a program started at a terminal does. A
+    test run started in the background of a non-interactive shell (`cmd &`) ignores SIGINT,
+    an ignored signal stays ignored across exec, and Python then installs no KeyboardInterrupt
+    handler: the child would never see the Ctrl-C these tests send."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _run_child(script, *args, timeout=300):
     out = subprocess.run([sys.executable, "-c", script, *map(str, args)], capture_output=True,
-                         text=True, timeout=timeout)
+                         text=True, timeout=timeout, preexec_fn=_sigint_default)
     assert out.returncode == 0, out.stderr[-3000:]
     return json.loads(out.stdout.strip().splitlines()[-1])
 
@@ -139,7 +147,7 @@ print("ok", len(done))
 
 def test_work_in_another_thread_runs_to_its_end():
     out = subprocess.run([sys.executable, "-c", THREAD_CHILD], capture_output=True, text=True,
-                         timeout=300)
+                         timeout=300, preexec_fn=_sigint_default)
     assert out.returncode == 0 and out.stdout.split() == ["ok", "1"], out.stderr[-2000:]
 
 
@@ -165,7 +173,8 @@ def test_command_line_exits_130_and_writes_nothing(tmp_path, stage):
     env = dict(os.environ)
     proc = subprocess.Popen([sys.executable, "-m", "smoothffd", "deform", str(obj), "--lattice",
                              str(lat), "-o", str(out), "--level", "12", "--device", "cpu"],
-                            stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, env=env)
+                            stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, env=env,
+                            preexec_fn=_sigint_default)
     err = b""
     deadline = time.time() + 120
     while f"smoothffd: {stage}".encode() not in err:  # the stage's line is printed as it starts

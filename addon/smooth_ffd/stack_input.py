@@ -225,16 +225,16 @@ class Deferred(Exception):
 # (object as_pointer, modifier name) of Smooth FFD modifiers that, in this round, wrote a
 # result or were made to pass their input through (force_passthrough): what the last
 # evaluation showed below them is not what the next one shows.
-_wrote = set()
+_changed = set()
 
 
 def begin_pass():
     """Called where one round of updates starts (handlers.update_all, api.update)."""
-    _wrote.clear()
+    _changed.clear()
 
 
 def wrote(obj, mod):
-    _wrote.add((obj.as_pointer(), mod.name))
+    _changed.add((obj.as_pointer(), mod.name))
 
 
 def mesh_fingerprint(mesh):
@@ -354,7 +354,7 @@ def force_passthrough(obj, mods, depsgraph):
     from . import handlers, modifier_update
     for m in mods:
         modifier_update.set_frames(m, "Result", nodegroup.NEVER)
-        _wrote.add((obj.as_pointer(), m.name))
+        _changed.add((obj.as_pointer(), m.name))
     obj.update_tag()
     counters["forced"] += 1
     with handlers.muted():
@@ -453,7 +453,7 @@ def _evaluated_input(obj, mod, ro, st, stack, depsgraph, changed, frame_change,
                                 for m in mods) if r is not None]
     # A Smooth FFD above wrote, or passed its input through, since the evaluation: the stack
     # here is not what the next evaluation shows.
-    stale = any((obj.as_pointer(), m.name) in _wrote for m in stack.above)
+    stale = any((obj.as_pointer(), m.name) in _changed for m in stack.above)
     switched = set_input_copy(obj, mod, stack)
     if not stale and not switched:
         got = _passed_through(obj, stack, depsgraph, results, read)
@@ -465,7 +465,7 @@ def _evaluated_input(obj, mod, ro, st, stack, depsgraph, changed, frame_change,
         defer(obj, mods)
     force_passthrough(obj, mods, depsgraph)
     for m in stack.above:
-        _wrote.discard((obj.as_pointer(), m.name))
+        _changed.discard((obj.as_pointer(), m.name))
     got = _passed_through(obj, stack, depsgraph, results, read)
     if got is None:
         nodes = [m.name for m in stack.other_below if m.type == 'NODES']

@@ -49,6 +49,24 @@ def evaluated(obj):
     return obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
 
 
+def first_v_err(got, exp, size):
+    """Max distance of the first V output positions from the V reference positions, in units
+    of size; inf when the output has no more vertices than the reference."""
+    return float(np.abs(got[:len(exp)] - exp).max()) / size if len(got) > len(exp) else np.inf
+
+
+def applied_to_copy(mesh, add_modifiers):
+    """Evaluated positions of a temporary object holding a copy of `mesh` with the modifiers
+    add_modifiers(obj) puts on it (an independent evaluation of what follows a result)."""
+    d = T.link(bpy.data.objects.new("ref_copy", mesh.copy()))
+    add_modifiers(d)
+    pos = T.positions(evaluated(d))
+    data = d.data
+    bpy.data.objects.remove(d)
+    bpy.data.meshes.remove(data)
+    return pos
+
+
 def parity(name, a, b, lat, mods):
     """A's first V evaluated vertices against B's (its stack with Lattice modifiers), in
     units of the lattice's size; every Smooth FFD status OK."""
@@ -356,7 +374,7 @@ def test_two_smooth_ffd():
     parity("two in a row: upper lattice edited", a, b, lat2, [m1, m2])
 
 
-def _below(obj, ref=None):
+def _below(obj):
     """The modifiers below Smooth FFD in test_modifiers_below: Subdivision Surface, and a
     Displace weighted by a vertex group (it reads the groups carried onto the result)."""
     obj.modifiers.new("Subsurf", 'SUBSURF').levels = 1
@@ -367,14 +385,9 @@ def _below(obj, ref=None):
 def _stack_below_matches(name, a, ro, tol=1e-6):
     """A's evaluated mesh against the same modifiers below applied to a copy of its Smooth FFD
     result in another object (an independent evaluation of what should follow it)."""
-    d = T.link(bpy.data.objects.new("below_ref", ro.data.copy()))
-    _below(d)
-    got, exp = T.positions(evaluated(a)), T.positions(evaluated(d))
+    got, exp = T.positions(evaluated(a)), applied_to_copy(ro.data, _below)
     err = float(np.abs(got - exp).max()) if got.shape == exp.shape else np.inf
     T.check(name, err <= tol, f"err {err:.1e}, {len(got)} vs {len(exp)} vertices")
-    mesh = d.data
-    bpy.data.objects.remove(d)
-    bpy.data.meshes.remove(mesh)
 
 
 def test_modifiers_below():
@@ -396,9 +409,7 @@ def test_modifiers_below():
     before = reads()
     for f in FRAMES[1:]:
         sc.frame_set(f)
-        got, exp = T.positions(ro.data), T.positions(evaluated(b))
-        err = float(np.abs(got[:len(exp)] - exp).max()) / size \
-            if len(got) > len(exp) else np.inf
+        err = first_v_err(T.positions(ro.data), T.positions(evaluated(b)), size)
         status = smooth_ffd.status(mod)
         T.check(f"modifiers below: frame {f} against Lattice", err <= TOL and
                 status.startswith("OK") and "warning" not in status,
@@ -425,14 +436,12 @@ def test_modifiers_below():
     # Same frame: a pose edit, then a lattice edit.
     rig.pose.bones["arm.L"].rotation_euler = (0.0, 0.9, 0.0)
     T.update()
-    parity_err = float(np.abs(T.positions(ro.data)[:len(b.data.vertices)] -
-                              T.positions(evaluated(b))).max()) / size
+    parity_err = first_v_err(T.positions(ro.data), T.positions(evaluated(b)), size)
     T.check("modifiers below: pose edit on the same frame", parity_err <= TOL,
             f"err {parity_err:.2e}")
     lat.data.points[21].co_deform.z += 0.15
     T.update()
-    parity_err = float(np.abs(T.positions(ro.data)[:len(b.data.vertices)] -
-                              T.positions(evaluated(b))).max()) / size
+    parity_err = first_v_err(T.positions(ro.data), T.positions(evaluated(b)), size)
     T.check("modifiers below: lattice edit", parity_err <= TOL, f"err {parity_err:.2e}")
     _stack_below_matches("modifiers below: after the edits, they get the result", a, ro)
     # The result shown: no input copy left among the evaluated instances.
@@ -498,18 +507,13 @@ def test_modifiers_between():
         smooth_ffd.update(a)   # what the timer runs
         statuses = [smooth_ffd.status(m) for m in (m1, m2)]
         got, got2 = T.positions(r1.data), T.positions(r2.data)   # before any evaluation
-        exp = T.positions(evaluated(b))
-        e1 = float(np.abs(got[:len(exp)] - exp).max()) / T.lattice_size(a, lat1) \
-            if len(got) > len(exp) else np.inf
-        d = T.link(bpy.data.objects.new("between_ref", r1.data.copy()))
-        d.modifiers.new("Subsurf", 'SUBSURF').levels = 1
-        with_lattice(d, lat2)
-        exp2 = T.positions(evaluated(d))
-        e2 = float(np.abs(got2[:len(exp2)] - exp2).max()) / T.lattice_size(a, lat2) \
-            if len(got2) > len(exp2) else np.inf
-        mesh = d.data
-        bpy.data.objects.remove(d)
-        bpy.data.meshes.remove(mesh)
+        e1 = first_v_err(got, T.positions(evaluated(b)), T.lattice_size(a, lat1))
+
+        def subsurf_lattice2(d):
+            d.modifiers.new("Subsurf", 'SUBSURF').levels = 1
+            with_lattice(d, lat2)
+        e2 = first_v_err(got2, applied_to_copy(r1.data, subsurf_lattice2),
+                         T.lattice_size(a, lat2))
         T.check(f"modifiers between: frame {f}, Smooth FFD 1 against Lattice, Smooth FFD 2 "
                 f"against Lattice on 1's result + Subsurf", e1 <= TOL and e2 <= TOL and
                 all(s.startswith("OK") and f"frame {f}," in s for s in statuses),
@@ -566,8 +570,7 @@ def test_render_stack():
         bpy.app.handlers.render_post.remove(grab)
     exp = T.positions(evaluated(ref))
     got = seen.get("pos")
-    err = float(np.abs(got[:len(exp)] - exp).max()) / T.lattice_size(a, lat) \
-        if got is not None and len(got) > len(exp) else np.inf
+    err = first_v_err(got, exp, T.lattice_size(a, lat)) if got is not None else np.inf
     T.check("render: the render stack (Subsurf render level)", err <= TOL,
             f"err {err:.2e}, {len(exp)} vertices at the render level")
     view = T.positions(evaluated(a))
@@ -583,8 +586,7 @@ def test_render_stack():
     finally:
         bpy.app.handlers.render_post.remove(grab)
     got = seen.get("pos")
-    err = float(np.abs(got[:len(exp)] - exp).max()) / T.lattice_size(a, lat) \
-        if got is not None and len(got) > len(exp) else np.inf
+    err = first_v_err(got, exp, T.lattice_size(a, lat)) if got is not None else np.inf
     T.check("render with a modifier below: the render stack", err <= TOL,
             f"err {err:.2e}, {len(exp)} vertices at the render level")
 

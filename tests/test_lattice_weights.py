@@ -204,12 +204,16 @@ def test_all_ones_deform_equals_unweighted():
     assert np.abs(weighted.corner_normals - plain.corner_normals).max() <= 2e-5
 
 
-def test_all_zeros_deform_equals_the_identity_lattice_bitwise():
+def test_all_zeros_deform_equals_the_identity_lattice():
+    """Weights all 0 give the identity lattice's result: the samples (input vertices
+    included) and the normals bitwise; the patches' centres to float rounding, since a plain
+    lattice's come from the plan's centre rows (plan/centre_rows.hpp) and a weighted one's
+    (not linear in the control values) from the fit."""
     mesh, _, _, kw = sphere_case("zeros")
     weighted = smoothffd.deform(mesh, smoothffd.BlenderLattice(**kw), level=4, device="cpu")
     identity = dict(kw, points=kw["rest_points"], point_weights=None)
     plain = smoothffd.deform(mesh, smoothffd.BlenderLattice(**identity), level=4, device="cpu")
-    np.testing.assert_array_equal(weighted.positions, plain.positions)
+    assert np.abs(weighted.positions - plain.positions).max() <= 5e-7  # unit sphere: a few ulp
     np.testing.assert_array_equal(weighted.corner_normals, plain.corner_normals)
     np.testing.assert_array_equal(weighted.positions[:len(mesh.positions)],
                                   mesh.positions.astype(np.float32))

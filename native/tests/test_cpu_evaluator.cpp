@@ -3,12 +3,15 @@
 // thread counts agree bitwise, random control values give finite unit-normal output.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <random>
 
 #include "smoothffd/core/hd.hpp"
 #include "smoothffd/eval/cpu_evaluator.hpp"
+#include "smoothffd/eval/stages.hpp"
 #include "test_util.hpp"
 
 using namespace sffd;
@@ -176,4 +179,75 @@ TEST(CpuEvaluator, PositionsOnlyMatchesEvaluateBitwise) {
   for (int p = 1; p <= 3; ++p) check(octahedron(0.47, 0.52, 0.55, 0.4), bspline_box(p, p + 3), 4);
   for (int type = 0; type < 4; ++type) check(cube_quads(), blender_box(BlenderInterp(type), 4), 3);
   for (int trial = 0; trial < 40; ++trial) check(random_mesh(rng), random_lattice(rng), lvl(rng));
+}
+
+TEST(CpuEvaluator, CentreRowsGiveTheFittedCentre) {
+  // The plan's centre rows (plan/centre_rows.hpp, built in double from the lattice) against
+  // the fit itself (fit_patch_into, float, from every sample): each patch's geometry from its
+  // row and from the fit, on lattices whose knot planes cut the mesh (a patch's samples in
+  // several boxes: the rest surface carries them across the planes), Blender's four bases,
+  // and random meshes and lattices (repeated knots: bases that jump at a plane).
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<float> U(-0.6f, 0.6f);
+  std::uniform_int_distribution<int> lvl(1, 3);
+  int with_rows = 0, straddling = 0;
+  double worst = 0;
+  auto check = [&](const InputMesh& m, const LatticeSpec& s, int level) {
+    auto plan = plan_of(m, s, level);
+    if (plan->centre_row.empty()) return;
+    ++with_rows;
+    std::vector<float> D(3 * (size_t)s.count());
+    for (float& d : D) d = U(rng);
+    const PlanView pv = host_view(*plan);
+    std::vector<float> value(3 * (size_t)pv.samples), jac(9 * (size_t)pv.samples), edge(6 * (size_t)pv.edges);
+    FrameView fv{value.data(), jac.data(), edge.data(), nullptr, nullptr, nullptr, nullptr};
+    for (int i = 0; i < pv.samples; ++i) sample_point(pv, D.data(), i, value.data() + 3 * i, jac.data() + 9 * i);
+    for (int e = 0; e < pv.edges; ++e) adjust_edge(pv, fv, e);
+    float scale = 1.0f;
+    for (float x : value) scale = std::max(scale, std::fabs(x));
+    for (int p = 0; p < pv.patches; ++p) {
+      float g[30], n[30];
+      fit_patch_into(pv, fv, p, g, n);
+      V3 corner[3], cp[3][2], h[10];
+      patch_boundary(pv, fv, p, corner, cp);
+      patch_from_centre_row(corner, cp, centre_row_value(pv, D.data(), p), h);
+      for (int r = 0; r < 10; ++r) {
+        const V3 d = h[r] - load3(g + 3 * r);
+        const double err = std::max({std::fabs(d.x), std::fabs(d.y), std::fabs(d.z)}) / scale;
+        worst = std::max(worst, err);
+        // The fit's float sums (K ~ 10-40 samples, M_r's entries up to about 10) round to a
+        // few 1e-6 of the samples' size; a wrong term in a row moves the centre by 1e-2 and more.
+        ASSERT_LE(err, 1e-5) << "patch " << p << " row " << r;
+        if (r < kCentre) ASSERT_EQ(err, 0.0);  // corners and edge points: the same floats
+      }
+      const int* ps = pv.patch_samples + (size_t)p * pv.columns;
+      for (int k = 1; k < pv.columns; ++k) straddling += pv.sample_piece[ps[k]] != pv.sample_piece[ps[0]];
+    }
+  };
+  for (int p = 1; p <= 3; ++p) check(octahedron(0.47, 0.52, 0.55, 0.4), bspline_box(p, p + 3), 3);
+  for (int type = 0; type < 4; ++type) check(cube_quads(), blender_box(BlenderInterp(type), 4), 2);
+  for (int trial = 0; trial < 40; ++trial) check(random_mesh(rng), random_lattice(rng), lvl(rng));
+  EXPECT_GE(with_rows, 30);
+  EXPECT_GT(straddling, 0);  // patches whose samples lie in several boxes were met
+  std::printf("centre rows: %d plans, %d samples in another box than their patch's first, largest "
+              "difference %.2e of the scale\n",
+              with_rows, straddling, worst);
+}
+
+TEST(CpuEvaluator, CentreRowsOnlyWhereTheCentreIsLinear) {
+  // Point weights (F = p + w^2 s d) are not linear in the control values: no rows, and the
+  // plan still evaluates (the fit's centre).
+  LatticeSpec w = blender_box(BlenderInterp::BSpline, 4);
+  w.components = 4;
+  auto weighted = plan_of(octahedron(), w, 2);
+  EXPECT_TRUE(weighted->centre_row.empty());
+  auto plain = plan_of(octahedron(), blender_box(BlenderInterp::BSpline, 4), 2);
+  ASSERT_EQ(plain->centre_start.size(), (size_t)plain->patches + 1);
+  EXPECT_EQ(plain->centre_row.size(), (size_t)plain->centre_start.back());
+  std::vector<float> D(4 * (size_t)w.count(), 0.1f), D3(3 * (size_t)w.count(), 0.1f);
+  for (size_t i = 0; i < D3.size(); ++i) D[4 * (i / 3) + i % 3] = D3[i];
+  for (size_t i = 3; i < D.size(); i += 4) D[i] = 1.0f;  // weight 1 everywhere: the plain lattice
+  CpuOut a = run_cpu(weighted, D), b = run_cpu(plain, D3);
+  ASSERT_EQ(a.pos.size(), b.pos.size());
+  for (size_t i = 0; i < a.pos.size(); ++i) ASSERT_NEAR(a.pos[i], b.pos[i], 1e-6f);
 }

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <climits>
+#include <algorithm>
 #include <cstring>
 #include <stdexcept>
 
@@ -43,6 +44,18 @@ const CpuFrameKernels* kernels_for(const std::string& isa) {
                               "' (this build and CPU run: auto, " + have + ")");
 }
 
+// The samples a frame of positions only reads when the plan has centre rows: the
+// sub-vertices (corners, the edge adjustment's ends) and the edges' constraint samples.
+SampleBatches positions_only_batches(const Plan& p) {
+  if (p.centre_row.empty()) return {};
+  std::vector<int> ids(p.sub_vertices);
+  for (int v = 0; v < p.sub_vertices; ++v) ids[v] = v;
+  ids.insert(ids.end(), p.edge_constraint.begin(), p.edge_constraint.end());
+  std::sort(ids.begin() + p.sub_vertices, ids.end());
+  ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+  return make_sample_batches(p, &ids);
+}
+
 }  // namespace
 
 std::string cpu_isa() { return best_kernels()->isa; }
@@ -59,11 +72,14 @@ CpuEvaluator::CpuEvaluator(std::shared_ptr<const Plan> plan, int threads, const 
     : plan_(std::move(plan)), threads_(threads > 0 ? threads : default_threads()),
       kernels_(kernels_for(isa)),
       batches_(make_sample_batches(*plan_)),
+      positions_batches_(positions_only_batches(*plan_)),
       fit_columns_(make_fit_columns(*plan_)),
       grid_lanes_(make_grid_basis_lanes(*plan_)),
       output_owned_(owned_output_vertices(*plan_)),
       render_owned_(owned_render_vertices(*plan_)) {
   const Plan& p = *plan_;
+  for (size_t i = 0; i + 1 < p.centre_start.size(); ++i)
+    centre_widest_ = std::max(centre_widest_, p.centre_start[i + 1] - p.centre_start[i]);
   sample_value_.resize(3 * (size_t)p.samples);
   sample_jacobian_.resize(9 * (size_t)p.samples);
   edge_control_.resize(6 * (size_t)p.edges);
@@ -100,8 +116,10 @@ StageTimes CpuEvaluator::evaluate_positions(const float* D, float* positions) {
 // The whole frame; the normals tessellated per triangle corner (corner_normals), once per
 // render vertex by its owner (render_normals), or not at all (both null: positions only).
 // Positions only, each stage runs the variant its own home has: sample_batch with jacobian ==
-// null (values only) and fit_patch_lanes with out_n == null (geometry only), both bitwise the
-// full variant's values (test_cpu_lanes.cpp), so the positions are bitwise the same
+// null (values only), and with centre rows only the samples the geometry reads, or else
+// fit_patch_lanes with out_n == null (geometry only); each is bitwise the full variant's
+// values (test_cpu_lanes.cpp), and with centre rows both frames make the geometry patches
+// with the same code, so the positions are bitwise the same
 // (PositionsOnlyMatchesEvaluateBitwise, test_cpu_evaluator.cpp).
 StageTimes CpuEvaluator::run(const float* D, float* positions, float* corner_normals, float* render_normals) {
   using Clock = std::chrono::steady_clock;
@@ -121,17 +139,31 @@ StageTimes CpuEvaluator::run(const float* D, float* positions, float* corner_nor
   // runs with Jacobians, every other batch values only. Batches keep plan order within a
   // lattice box, so the sub-vertices fill batches of their own, and at most one batch a box
   // is mixed.
+  // With centre rows (plan/centre_rows.hpp) the geometry patches need the sub-vertex and
+  // edge-constraint samples only and no fitting: positions only, the other samples are not
+  // evaluated (positions_batches_); with normals the fit makes the normal patches alone.
   const int jacobian_below = normals ? INT_MAX : pv.sub_vertices;
+  const bool rows = pv.centre_row != nullptr;
+  const SampleBatches& sb = rows && !normals ? positions_batches_ : batches_;
   const CpuFrameKernels& k = *kernels_;
-  parallel_for(batches_.count(), threads_, [&](long long b, long long e) {
-    k.sample(pv, D, batches_, b, e, fv.sample_value, fv.sample_jacobian, jacobian_below);
+  parallel_for(sb.count(), threads_, [&](long long b, long long e) {
+    k.sample(pv, D, sb, b, e, fv.sample_value, fv.sample_jacobian, jacobian_below);
   });
   lap("sampling");
   parallel_for(pv.edges, threads_, [&](long long b, long long e) { k.adjust_edges(pv, fv, b, e); });
   lap("edge_adjustment");
-  parallel_for(pv.patches, threads_, [&](long long b, long long e) {
-    k.fit_patches(pv, fv, fit_columns_, b, e);  // geometry only when fv.patch_normal is null
-  });
+  if (normals || !rows) {
+    FrameView fit = fv;
+    if (rows) fit.patch_control = nullptr;
+    parallel_for(pv.patches, threads_, [&](long long b, long long e) {
+      k.fit_patches(pv, fit, fit_columns_, b, e);  // geometry only when fit.patch_normal is null
+    });
+  }
+  if (rows)
+    parallel_for(pv.patches, threads_, [&](long long b, long long e) {
+      std::vector<float> block(3 * (size_t)centre_widest_);
+      k.row_patches(pv, fv, D, b, e, block.data());
+    });
   lap("fitting");
   tessellate_positions(pv, fv);
   lap("tessellate_positions");

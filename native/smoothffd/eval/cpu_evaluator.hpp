@@ -32,7 +32,8 @@ class CpuEvaluator : public Evaluator {
   // Positions only (N x 3), bitwise the same as evaluate's, for callers that compute normals
   // from the dense geometry themselves (the Blender add-on's viewport): Jacobians only where
   // the edge adjustment reads them (the sub-vertex samples), geometry patches only, no normal
-  // tessellation. Stage names as evaluate's, without "tessellate_normals".
+  // tessellation; with centre rows (plan/centre_rows.hpp) only the sub-vertex and edge
+  // constraint samples and no fitting. Stage names as evaluate's, without "tessellate_normals".
   StageTimes evaluate_positions(const float* D, float* positions);
   // The compact layout (evaluator.hpp): evaluate's stages, the normals tessellated once per
   // render vertex by its owner instead of once per triangle corner. render_normals null:
@@ -47,10 +48,12 @@ class CpuEvaluator : public Evaluator {
   int threads_;
   const CpuFrameKernels* kernels_;  // the per-ISA per-frame loops
   SampleBatches batches_;  // sampling: samples grouped by lattice box, kLanes at a time
+  SampleBatches positions_batches_;  // the same for positions only with centre rows
   FitColumns fit_columns_; // fitting: the centre row's columns, kLanes at a time
   GridBasisLanes grid_lanes_;  // normal tessellation: grid points kLanes at a time
   OwnedPoints output_owned_;  // position tessellation: the output vertices each patch writes
   OwnedPoints render_owned_;  // compact normals: the render vertices each patch writes
+  long long centre_widest_ = 0;  // the plan's longest centre row (floats)
   std::vector<float> sample_value_, sample_jacobian_, edge_control_, patch_control_, patch_normal_;
 };
 

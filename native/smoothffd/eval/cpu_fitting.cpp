@@ -52,7 +52,7 @@ void cofactor_apply_lanes(const Lanes J[9], const Lanes n[3], Lanes out[3]) {
 // points b (3 x stride floats from bary + l). deformed_column_normal on lanes: the interpolated
 // rest normal, its cofactor image, two normalizations; lanes outside normalized_or's plain
 // range (a degenerate or huge cofactor) redo the shared scalar code, fallbacks included.
-template <bool kNormals>
+template <bool kNormals, bool kGeometry = true>
 void columns_on_lanes(const PlanView& pv, const FrameView& fv, const int* s, const float* bary,
                       int stride, const int* column, const V3 rn[3], Lanes x[3], Lanes n[3]) {
   // Gathered (lanes.hpp) while the element offsets 9 s fit in int32; one load a lane beyond
@@ -64,13 +64,15 @@ void columns_on_lanes(const PlanView& pv, const FrameView& fv, const int* s, con
       o3[l] = s[l] >= 0 ? 3 * s[l] : -1;
       o9[l] = s[l] >= 0 ? 9 * s[l] : -1;
     }
-    for (int r = 0; r < 3; ++r) x[r] = gather_lanes(fv.sample_value + r, o3, 0.0f);
+    if (kGeometry)
+      for (int r = 0; r < 3; ++r) x[r] = gather_lanes(fv.sample_value + r, o3, 0.0f);
     if (kNormals)
       for (int r = 0; r < 9; ++r) J[r] = gather_lanes(fv.sample_jacobian + r, o9, r % 4 == 0 ? 1.0f : 0.0f);
   } else {
     for (int l = 0; l < kLanes; ++l) {
       const long long q = s[l];
-      for (int r = 0; r < 3; ++r) x[r].set(l, q >= 0 ? fv.sample_value[3 * q + r] : 0.0f);
+      if (kGeometry)
+        for (int r = 0; r < 3; ++r) x[r].set(l, q >= 0 ? fv.sample_value[3 * q + r] : 0.0f);
       if (kNormals)
         for (int r = 0; r < 9; ++r) J[r].set(l, q >= 0 ? fv.sample_jacobian[9 * q + r] : r % 4 == 0 ? 1.0f : 0.0f);
     }
@@ -98,7 +100,7 @@ void columns_on_lanes(const PlanView& pv, const FrameView& fv, const int* s, con
   }
 }
 
-template <bool kNormals>
+template <bool kNormals, bool kGeometry = true>
 void fit_patch_impl(const PlanView& pv, const FrameView& fv, const FitColumns& fc, int p,
                     float* out_g, float* out_n) {
   const int K = pv.columns;
@@ -114,9 +116,10 @@ void fit_patch_impl(const PlanView& pv, const FrameView& fv, const FitColumns& f
       s[l] = k0 + l < fc.centre ? ps[k0 + l] : -1;
     }
     Lanes x[3], n[3];
-    columns_on_lanes<kNormals>(pv, fv, s, fc.bary.data() + k0, fc.padded, column, rn, x, n);
+    columns_on_lanes<kNormals, kGeometry>(pv, fv, s, fc.bary.data() + k0, fc.padded, column, rn, x, n);
     const Lanes m = load_lanes(fc.weight.data() + k0);
-    for (int r = 0; r < 3; ++r) gc[r] += m * x[r];
+    if (kGeometry)
+      for (int r = 0; r < 3; ++r) gc[r] += m * x[r];
     if (kNormals)
       for (int r = 0; r < 3; ++r) nc[r] += m * n[r];
   }
@@ -128,13 +131,13 @@ void fit_patch_impl(const PlanView& pv, const FrameView& fv, const FitColumns& f
       s[l] = c0 + l < 9 ? ps[fc.centre + c0 + l] : -1;
     }
     Lanes x[3], n[3];
-    columns_on_lanes<kNormals>(pv, fv, s, fc.cbary.data() + c0, 16, column, rn, x, n);
+    columns_on_lanes<kNormals, kGeometry>(pv, fv, s, fc.cbary.data() + c0, 16, column, rn, x, n);
     for (int l = 0; l < kLanes && c0 + l < 9; ++l) {
       const float* mt = fc.crows.data() + 16 * (c0 + l);
       const Lanes m[2] = {load_lanes(mt), load_lanes(mt + kLanes)};
       for (int h = 0; h < 2; ++h)
         for (int r = 0; r < 3; ++r) {
-          ag[r][h] += m[h] * x[r][l];
+          if (kGeometry) ag[r][h] += m[h] * x[r][l];
           if (kNormals) an[r][h] += m[h] * n[r][l];
         }
     }
@@ -146,9 +149,9 @@ void fit_patch_impl(const PlanView& pv, const FrameView& fv, const FitColumns& f
   }
   g[kCentre] += v3(sum(gc[0]), sum(gc[1]), sum(gc[2]));
   nn[kCentre] += v3(sum(nc[0]), sum(nc[1]), sum(nc[2]));
-  finish_patch(pv, fv, p, g);
+  if (kGeometry) finish_patch(pv, fv, p, g);
   for (int r = 0; r < 10; ++r) {
-    store3(out_g + 3 * r, g[r]);
+    if (kGeometry) store3(out_g + 3 * r, g[r]);
     if (kNormals) store3(out_n + 3 * r, nn[r]);
   }
 }
@@ -157,10 +160,45 @@ void fit_patch_impl(const PlanView& pv, const FrameView& fv, const FitColumns& f
 
 void fit_patch_lanes(const PlanView& pv, const FrameView& fv, const FitColumns& fc, int p,
                      float* out_g, float* out_n) {
-  if (out_n)
+  if (!out_g)
+    fit_patch_impl<true, false>(pv, fv, fc, p, nullptr, out_n);
+  else if (out_n)
     fit_patch_impl<true>(pv, fv, fc, p, out_g, out_n);
   else
     fit_patch_impl<false>(pv, fv, fc, p, out_g, nullptr);
+}
+
+int centre_block(const PlanView& pv, const float* D, uint64_t box, float* block) {
+  int lo[3], ext[3];
+  unpack_centre_box(box, lo, ext);
+  const int n = ext[0] * ext[1] * ext[2], S = (n + 7) / 8 * 8;
+  int i = 0;
+  for (int u = 0; u < ext[0]; ++u)
+    for (int v = 0; v < ext[1]; ++v) {
+      const float* d = D + 3 * (((long long)(lo[0] + u) * pv.dims[1] + lo[1] + v) * pv.dims[2] + lo[2]);
+      for (int w = 0; w < ext[2]; ++w, ++i, d += 3) {
+        block[i] = d[0];
+        block[S + i] = d[1];
+        block[2 * S + i] = d[2];
+      }
+    }
+  for (; i < S; ++i) block[i] = block[S + i] = block[2 * S + i] = 0.0f;
+  return S;
+}
+
+void geometry_patch_from_row(const PlanView& pv, const FrameView& fv, const float* block, int stride, int p,
+                             float* out_g) {
+  const float* row = pv.centre_row + pv.centre_start[p];
+  Lanes x[3] = {0.0f, 0.0f, 0.0f};
+  for (int i = 0; i < stride; i += kLanes) {
+    const Lanes a = load_lanes(row + i);
+    for (int r = 0; r < 3; ++r) x[r] += a * load_lanes(block + (size_t)r * stride + i);
+  }
+  const V3 value = load3(pv.centre_constant + 3 * (long long)p) + v3(sum(x[0]), sum(x[1]), sum(x[2]));
+  V3 corner[3], cp[3][2], g[10];
+  patch_boundary(pv, fv, p, corner, cp);
+  patch_from_centre_row(corner, cp, value, g);
+  for (int r = 0; r < 10; ++r) store3(out_g + 3 * r, g[r]);
 }
 
 SFFD_ISA_END

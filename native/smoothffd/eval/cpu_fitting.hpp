@@ -35,8 +35,19 @@ SFFD_ISA_BEGIN  // one copy per ISA (core/isa.hpp)
 // The geometry patch (10 x 3 floats) of patch p into out_g and, when out_n is not null, its
 // normal patch into out_n; reads fv.sample_value, fv.sample_jacobian (only for normals: the
 // adjusted edges already used the corner Jacobians) and fv.edge_control.
+// out_g null: the normal patch only.
 void fit_patch_lanes(const PlanView& pv, const FrameView& fv, const FitColumns& fc, int p,
                      float* out_g, float* out_n);
+
+// Plans with centre rows (plan/centre_rows.hpp). centre_block: the control values of the
+// block `box` (a patch's Plan::centre_box) as its rows read them, 3 x stride floats (x, then
+// y, then z; 0 in the padding); returns the stride (the row's length).
+// geometry_patch_from_row: the geometry patch of p, whose block is `block`, from its corners,
+// its adjusted edge control points and its centre row (patch_from_centre_row, the row's sum
+// on lanes): fit_patch_lanes's patch up to float rounding, with no fitting.
+int centre_block(const PlanView& pv, const float* D, uint64_t box, float* block);
+void geometry_patch_from_row(const PlanView& pv, const FrameView& fv, const float* block, int stride, int p,
+                             float* out_g);
 
 SFFD_ISA_END
 

@@ -29,8 +29,18 @@ void adjust_edges(const PlanView& pv, const FrameView& fv, long long b, long lon
 void fit_patches(const PlanView& pv, const FrameView& fv, const FitColumns& fc, long long b,
                  long long e) {
   for (long long p = b; p < e; ++p)
-    fit_patch_lanes(pv, fv, fc, (int)p, fv.patch_control + 30 * p,
+    fit_patch_lanes(pv, fv, fc, (int)p, fv.patch_control ? fv.patch_control + 30 * p : nullptr,
                     fv.patch_normal ? fv.patch_normal + 30 * p : nullptr);
+}
+
+void row_patches(const PlanView& pv, const FrameView& fv, const float* D, long long b, long long e,
+                 float* block) {
+  uint64_t box = 0;
+  int stride = 0;
+  for (long long p = b; p < e; ++p) {
+    if (p == b || pv.centre_box[p] != box) stride = centre_block(pv, D, box = pv.centre_box[p], block);
+    geometry_patch_from_row(pv, fv, block, stride, (int)p, fv.patch_control + 30 * p);
+  }
 }
 
 // For each patch of [b, e) that owns points: its grid values (grid(p, scratch): padded x 3,
@@ -91,7 +101,7 @@ extern const CpuFrameKernels cpu_frame_kernels_v3 = {
 #else
 extern const CpuFrameKernels cpu_frame_kernels_baseline = {
 #endif
-    SFFD_ISA_NAME,        sample_range,         adjust_edges, fit_patches, tessellate_positions,
-    tessellate_normals,   tessellate_render_normals};
+    SFFD_ISA_NAME,        sample_range,         adjust_edges, fit_patches, row_patches,
+    tessellate_positions, tessellate_normals,   tessellate_render_normals};
 
 }  // namespace sffd

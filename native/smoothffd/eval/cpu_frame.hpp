@@ -25,9 +25,15 @@ struct CpuFrameKernels {
   void (*sample)(const PlanView& pv, const float* D, const SampleBatches& sb, long long b,
                  long long e, float* value, float* jacobian, int jacobian_below);
   void (*adjust_edges)(const PlanView& pv, const FrameView& fv, long long b, long long e);
-  // Geometry patches into fv.patch_control, normal patches into fv.patch_normal unless null.
+  // Geometry patches into fv.patch_control, normal patches into fv.patch_normal, each unless
+  // null.
   void (*fit_patches)(const PlanView& pv, const FrameView& fv, const FitColumns& fc, long long b,
                       long long e);
+  // Plans with centre rows: the geometry patches of [b, e) from their centre rows
+  // (geometry_patch_from_row) into fv.patch_control, no fitting; block: 3 x the largest row
+  // of the plan (Plan::centre_start) floats.
+  void (*row_patches)(const PlanView& pv, const FrameView& fv, const float* D, long long b, long long e,
+                      float* block);
   // Positions of the output vertices patches [b, e) own (ov) into fv.positions; scratch:
   // 3 * gb.padded floats. The sub-vertices' positions are their samples (copied apart).
   void (*tessellate_positions)(const PlanView& pv, const FrameView& fv, const GridBasisLanes& gb,

@@ -27,8 +27,15 @@ int box_terms(const Plan& plan, uint32_t packed) {
 
 }  // namespace
 
-SampleBatches make_sample_batches(const Plan& plan) {
-  const int S = plan.samples;
+SampleBatches make_sample_batches(const Plan& plan, const std::vector<int>* only) {
+  std::vector<int> all;
+  if (!only) {
+    all.resize(plan.samples);
+    std::iota(all.begin(), all.end(), 0);
+    only = &all;
+  }
+  const std::vector<int>& ids = *only;
+  const int S = (int)ids.size();
   SampleBatches sb;
   sb.order.resize(S);
   // Dense box id from the three piece numbers; a counting sort keeps plan order in a box.
@@ -41,11 +48,11 @@ SampleBatches make_sample_batches(const Plan& plan) {
   const long long boxes = (long long)n[0] * n[1] * n[2];
   if (boxes <= 4LL * S + 1024) {
     std::vector<int> first(boxes + 1, 0);
-    for (int s = 0; s < S; ++s) ++first[box(plan.sample_piece[s]) + 1];
+    for (int s : ids) ++first[box(plan.sample_piece[s]) + 1];
     std::partial_sum(first.begin(), first.end(), first.begin());
-    for (int s = 0; s < S; ++s) sb.order[first[box(plan.sample_piece[s])]++] = s;
+    for (int s : ids) sb.order[first[box(plan.sample_piece[s])]++] = s;
   } else {  // very fine lattices: more boxes than samples
-    std::iota(sb.order.begin(), sb.order.end(), 0);
+    sb.order = ids;
     std::stable_sort(sb.order.begin(), sb.order.end(), [&](int x, int y) {
       return box(plan.sample_piece[x]) < box(plan.sample_piece[y]);
     });

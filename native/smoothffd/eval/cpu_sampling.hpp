@@ -23,7 +23,8 @@ struct SampleBatches {
   long long count() const { return (long long)terms.size(); }
 };
 
-SampleBatches make_sample_batches(const Plan& plan);
+// only: the samples to batch, in plan order (null: all of them).
+SampleBatches make_sample_batches(const Plan& plan, const std::vector<int>* only = nullptr);
 
 SFFD_ISA_BEGIN  // one copy per ISA (core/isa.hpp)
 

@@ -40,6 +40,11 @@ struct PlanView {
   const int* render_position;    // R
   const int* patch_grid_render;  // P x G
   const int* render_triangles;   // T x 3
+  // Centre rows (Plan::centre_row; null without them: point weights, or a device view)
+  const uint64_t* centre_box;
+  const long long* centre_start;
+  const float* centre_row;
+  const float* centre_constant;
 };
 
 // Intermediate and output buffers of one frame.
@@ -100,6 +105,10 @@ inline PlanView host_view(const Plan& p) {
   v.render_position = p.render_position.data();
   v.patch_grid_render = p.patch_grid_render.data();
   v.render_triangles = p.render_triangles.data();
+  v.centre_box = p.centre_box.empty() ? nullptr : p.centre_box.data();
+  v.centre_start = p.centre_start.empty() ? nullptr : p.centre_start.data();
+  v.centre_row = p.centre_row.empty() ? nullptr : p.centre_row.data();
+  v.centre_constant = p.centre_constant.empty() ? nullptr : p.centre_constant.data();
   return v;
 }
 

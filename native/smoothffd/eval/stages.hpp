@@ -221,9 +221,9 @@ SFFD_HD void finish_patch_from(const V3 corner[3], const V3 edge_cp[3][2], V3 g[
   g[kCentre] = moved_centre(g[kCentre], fitted_mean, adjusted_mean);
 }
 
-// finish_patch_from with the corners and edge control points from the frame's buffers.
-SFFD_HD void finish_patch(const PlanView& pv, const FrameView& fv, int p, V3 g[10]) {
-  V3 corner[3], cp[3][2];
+// The corners and adjusted edge control points of patch p from the frame's buffers
+// (cp[k]: next to corner k, next to corner k + 1).
+SFFD_HD void patch_boundary(const PlanView& pv, const FrameView& fv, int p, V3 corner[3], V3 cp[3][2]) {
   for (int k = 0; k < 3; ++k) {
     corner[k] = load3(fv.sample_value + 3 * (long long)pv.patch_vertex[3 * p + k]);
     int e = pv.patch_edge[3 * p + k];
@@ -232,7 +232,51 @@ SFFD_HD void finish_patch(const PlanView& pv, const FrameView& fv, int p, V3 g[1
     cp[k][0] = rev ? near_b : near_a;
     cp[k][1] = rev ? near_a : near_b;
   }
+}
+
+// finish_patch_from with the corners and edge control points from the frame's buffers.
+SFFD_HD void finish_patch(const PlanView& pv, const FrameView& fv, int p, V3 g[10]) {
+  V3 corner[3], cp[3][2];
+  patch_boundary(pv, fv, p, corner, cp);
   finish_patch_from(corner, cp, g);
+}
+
+// The geometry patch from its boundary and its centre row's value c_p + sum_j a_pj D_j
+// (plan/centre_rows.hpp): finish_patch_from's patch, the fitted edge points' share of the
+// moved centre already in the row.
+SFFD_HD void patch_from_centre_row(const V3 corner[3], const V3 edge_cp[3][2], V3 row_value, V3 g[10]) {
+  V3 adjusted = v3(0, 0, 0);
+  for (int k = 0; k < 3; ++k) {
+    g[k] = corner[k];
+    g[edge_control_index(k, false)] = edge_cp[k][0];
+    g[edge_control_index(k, true)] = edge_cp[k][1];
+    adjusted += edge_cp[k][0] + edge_cp[k][1];
+  }
+  g[kCentre] = row_value + 0.25f * adjusted;
+}
+
+// A centre row's block (Plan::centre_box): control indices lo[a] + [0, ext[a]) along axis a.
+SFFD_HD void unpack_centre_box(uint64_t box, int lo[3], int ext[3]) {
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = (int)((box >> (16 * a)) & 0xffffu);
+    ext[a] = (int)((box >> (48 + 5 * a)) & 31u);
+  }
+}
+
+// The reference value of patch p's centre row (the CPU evaluator's is on lanes: same terms,
+// another order): c_p + sum_j a_pj D_j over the patch's block.
+SFFD_HD V3 centre_row_value(const PlanView& pv, const float* D, int p) {
+  int lo[3], ext[3];
+  unpack_centre_box(pv.centre_box[p], lo, ext);
+  const float* row = pv.centre_row + pv.centre_start[p];
+  V3 x = load3(pv.centre_constant + 3 * (long long)p);
+  for (int u = 0, i = 0; u < ext[0]; ++u)
+    for (int v = 0; v < ext[1]; ++v)
+      for (int w = 0; w < ext[2]; ++w, ++i) {
+        const long long o = ((long long)(lo[0] + u) * pv.dims[1] + lo[1] + v) * pv.dims[2] + lo[2] + w;
+        x += row[i] * load3(D + 3 * o);
+      }
+  return x;
 }
 
 // The whole fit of patch p: fit_column over its columns, the product with M_r, finish_patch;

@@ -10,6 +10,7 @@
 #include "smoothffd/core/cancel.hpp"
 #include "smoothffd/core/parallel.hpp"
 #include "smoothffd/mesh/triangulate.hpp"
+#include "smoothffd/plan/centre_rows.hpp"
 #include "smoothffd/plan/clip.hpp"
 #include "smoothffd/plan/corner_normals.hpp"
 #include "smoothffd/plan/edges.hpp"
@@ -125,7 +126,8 @@ size_t Plan::bytes() const {
             output_owner.size() + rest_positions.size() + triangles.size() + face_index.size() +
             uvs.size() + sharp_edges.size() + render_owner.size() + render_position.size() +
             patch_grid_render.size() + render_triangles.size() + input_triangle_corner.size() +
-            input_triangle_face.size() + patch_triangle.size());
+            input_triangle_face.size() + patch_triangle.size() + centre_row.size() + centre_constant.size());
+  b += 8 * (centre_box.size() + centre_start.size());
   b += 8 * patch_bary.size();
   b += patch_edge_reversed.size() + edge_slot.size() + edge_flags.size();
   return b;
@@ -138,7 +140,8 @@ double estimate_plan_bytes(double P, double SV, int level, int fit_degree, bool 
   const double T = P * L * L;                           // output triangles
   const double N = SV + E * (L - 1) + P * (L - 1) * (L - 2) / 2;  // output vertices
   const double S = SV + E * (n - 1) + P * (n - 1) * (n - 2) / 2;  // samples
-  const double per_patch = 4 * K + 4 * (3 + 3 + 9 + 9 + 1 + 1) + 72 + 1 + 8 * G + 240 + 240;
+  const double row = std::ceil(std::pow(n / 3.0 + 1, 3) / 8) * 8;  // centre row (plan/centre_rows.hpp)
+  const double per_patch = 4 * K + 4 * (3 + 3 + 9 + 9 + 1 + 1) + 72 + 1 + 8 * G + 240 + 240 + 4 * (row + 3) + 16;
   const double per_edge = 4 * (2 + 2 + 2 + 4) + 4 + 1 + 24;
   const double per_triangle = 2 * (12 + 4 + 12 + (uvs ? 24 : 0)) + 36;  // plan + numpy copy, normals
   const double per_vertex = 2 * (12 + 8 + 12) + 12;     // rest, owners (plan + copy), positions
@@ -426,6 +429,7 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
         }
     }
   });
+  build_centre_rows(plan, lattice, fit, sample_exact);
   std::vector<double>().swap(sample_exact);
   plan.fit_matrix.assign(fit.M_r.begin(), fit.M_r.end());
   plan.column_bary.resize(3 * (size_t)K);

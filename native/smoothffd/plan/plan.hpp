@@ -120,6 +120,14 @@ struct Plan {
   std::vector<float> column_bary;    // K x 3: barycentric point of each column
   std::vector<int> patch_samples;    // P x K: sample of each column
 
+  // --- centre rows (plan/centre_rows.hpp; empty with point weights, components 4): each
+  // geometry patch's centre before the edge adjustment's share, c_p + sum_j a_pj D_j, over a
+  // block of control points: lo_a + [0, ext_a) along each axis a, a_pj at (u ext_1 + v) ext_2 + w
+  std::vector<uint64_t> centre_box;    // P: lo_a in bits 16a (16 bits), ext_a in bits 48 + 5a
+  std::vector<long long> centre_start; // P + 1: the rows' offsets (each a multiple of 8 floats)
+  std::vector<float> centre_row;       // a_pj, 0 in a row's padding
+  std::vector<float> centre_constant;  // P x 3: c_p
+
   // --- patches
   std::vector<int> patch_vertex;            // P x 3 sub-vertices (= their vertex samples)
   std::vector<int> patch_edge;              // P x 3: edge k runs corner k -> corner k+1

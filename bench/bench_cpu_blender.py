@@ -25,18 +25,17 @@ def blender_lat(P, shape, rng, amp=0.15):
 mesh_s = smoothffd.io.read_obj_mesh(os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "tests/data/real/suzanne_subsurf.obj"))
 P, F, N = bench_gpu.torus(89, 88)
 mesh_t = smoothffd.Mesh(P, F, corner_normals=N[F.reshape(-1)])
-out = []
 for name, mesh, shape, L in [("suzanne3.9k", mesh_s, (4, 4, 4), 2), ("torus15.7k", mesh_t, (4, 4, 4), 2),
                               ("torus15.7k", mesh_t, (4, 4, 4), 3), ("torus15.7k 8^3", mesh_t, (8, 8, 8), 2)]:
     rng = np.random.default_rng(1)
-    pos = mesh.positions if hasattr(mesh, "positions") else P
-    lat = blender_lat(np.asarray(pos), shape, rng)
+    pos = np.asarray(mesh.positions)
+    lat = blender_lat(pos, shape, rng)
     d = smoothffd.Deformer(mesh, lat, level=L, device="cpu", threads=2)
     for normals in (False, True):
         ts, st = [], []
         r = None
         for i in range(reps):
-            l2 = blender_lat(np.asarray(pos), shape, np.random.default_rng(i + 2))
+            l2 = blender_lat(pos, shape, np.random.default_rng(i + 2))
             t0 = time.perf_counter()
             r = d.deform(l2.points, normals=normals, out=r, layout="compact")
             ts.append((time.perf_counter() - t0) * 1e3)

@@ -79,13 +79,12 @@ void build_centre_rows(Plan& plan, const LatticeSpec& lattice, const FitTables& 
         double prm[3], wt[3][kCentreMaxExtent] = {};
         lattice.to_param(pos, prm);
         for (int a = 0; a < 3; ++a) {
-          const AxisPiece& pc = piece_of(s, a);
-          const double t = pc.degree == 0 ? 0.0 : (prm[a] - pc.origin) / pc.scale;
-          for (int q = 0; q < pc.count; ++q) {
-            double v = 0;
-            for (int d = pc.degree; d >= 0; --d) v = v * t + pc.coef[q][d];
-            wt[a][pc.index[q] - L[a]] += v;  // clamped stencils repeat an index: their weights add
-          }
+          const int pi = (plan.sample_piece[s] >> (10 * a)) & 1023u;
+          const AxisPiece& pc = lattice.axes[a].pieces()[pi];
+          double w[kMaxTerms], dw[kMaxTerms];
+          lattice.axes[a].weights(pi, prm[a], w, dw);
+          for (int q = 0; q < pc.count; ++q)
+            wt[a][pc.index[q] - L[a]] += w[q];  // clamped stencils repeat an index: their weights add
         }
         const double f = m[k] * plan.sample_weight[s];
         for (int i = 0; i < 3; ++i) c[i] += m[k] * pos[i];

@@ -8,7 +8,10 @@
 // * the fit with the centre row on lanes (eval/cpu_fitting.hpp) vs fit_patch_into, including
 //   columns whose Jacobian is singular (the normalization fallbacks);
 // * the grid normals on lanes (eval/cpu_tessellation.hpp) vs tessellate_normal, including
-//   normal patches that vanish (the fallback).
+//   normal patches that vanish (the fallback);
+// * the edge adjustment from the per-frame table of distinct end normals (eval/cpu_frame.hpp)
+//   vs adjust_edge: bitwise (the same operations on the same values), including sharp ends,
+//   boundary and kept edges and singular Jacobians.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -16,6 +19,7 @@
 #include <random>
 
 #include "smoothffd/eval/cpu_fitting.hpp"
+#include "smoothffd/eval/cpu_frame.hpp"
 #include "smoothffd/eval/cpu_sampling.hpp"
 #include "smoothffd/eval/cpu_tessellation.hpp"
 #include "smoothffd/eval/lanes.hpp"
@@ -165,4 +169,46 @@ TEST(CpuTessellation, GridNormalsMatchScalarTessellateNormal) {
       }
     }
   }
+}
+
+TEST(CpuEdges, EndNormalTableMatchesAdjustEdge) {
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<float> jitter(-0.2f, 0.2f);
+  int checked = 0, shared = 0;
+  for (int trial = 0; trial < 36; ++trial) {
+    LatticeSpec s = trial % 4 == 3 ? blender_box(BlenderInterp::BSpline, 4, -0.1, 1.1) : random_lattice(rng);
+    InputMesh m = trial % 6 == 0 ? octahedron() : trial % 6 == 1 ? cube_quads() : random_mesh(rng);
+    PlanOptions opt;
+    opt.level = 2;
+    Plan plan;
+    try {
+      plan = build_plan(m, s, opt);
+    } catch (const std::invalid_argument&) {
+      continue;
+    }
+    std::vector<float> D = zero_values(s);
+    for (float& d : D) d = jitter(rng);
+    const PlanView pv = host_view(plan);
+    std::vector<float> value(3 * (size_t)plan.samples), jac(9 * (size_t)plan.samples);
+    for (int i = 0; i < plan.samples; ++i) sample_point(pv, D.data(), i, &value[3 * i], &jac[9 * i]);
+    for (int i = 0; i < plan.sub_vertices; i += 7)  // singular: the fallback normals
+      for (int r = 0; r < 9; ++r) jac[9 * (size_t)i + r] = 0.0f;
+    std::vector<float> edge0(6 * (size_t)plan.edges), edge1(6 * (size_t)plan.edges, -1.0f);
+    FrameView fv{value.data(), jac.data(), edge0.data(), nullptr, nullptr, nullptr, nullptr};
+    for (int e = 0; e < plan.edges; ++e) adjust_edge(pv, fv, e);
+    const EdgeEndNormals en = make_edge_end_normals(plan);
+    int ends = 0;
+    for (int id : en.edge_end) ends += id >= 0;
+    ASSERT_LE(en.count(), ends);
+    shared += en.count() < ends;
+    std::vector<float> normals(3 * (size_t)en.count());
+    FrameView fv1 = fv;
+    fv1.edge_control = edge1.data();
+    cpu_frame_kernels_baseline.end_normals(fv1, en, 0, en.count(), normals.data());
+    cpu_frame_kernels_baseline.adjust_edges(pv, fv1, en, normals.data(), 0, plan.edges);
+    for (size_t i = 0; i < edge0.size(); ++i) ASSERT_EQ(edge1[i], edge0[i]) << "edge " << i / 6;
+    ++checked;
+  }
+  EXPECT_GT(checked, 25);
+  EXPECT_GT(shared, 20);  // smooth vertices: the patches around them share their end normals
 }

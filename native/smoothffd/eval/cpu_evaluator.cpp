@@ -76,12 +76,14 @@ CpuEvaluator::CpuEvaluator(std::shared_ptr<const Plan> plan, int threads, const 
       fit_columns_(make_fit_columns(*plan_)),
       grid_lanes_(make_grid_basis_lanes(*plan_)),
       output_owned_(owned_output_vertices(*plan_)),
-      render_owned_(owned_render_vertices(*plan_)) {
+      render_owned_(owned_render_vertices(*plan_)),
+      end_normals_(make_edge_end_normals(*plan_)) {
   const Plan& p = *plan_;
   for (size_t i = 0; i + 1 < p.centre_start.size(); ++i)
     centre_widest_ = std::max(centre_widest_, p.centre_start[i + 1] - p.centre_start[i]);
   sample_value_.resize(3 * (size_t)p.samples);
   sample_jacobian_.resize(9 * (size_t)p.samples);
+  end_normal_.resize(3 * (size_t)end_normals_.count());
   edge_control_.resize(6 * (size_t)p.edges);
   patch_control_.resize(30 * (size_t)p.patches);
   patch_normal_.resize(30 * (size_t)p.patches);
@@ -150,7 +152,12 @@ StageTimes CpuEvaluator::run(const float* D, float* positions, float* corner_nor
     k.sample(pv, D, sb, b, e, fv.sample_value, fv.sample_jacobian, jacobian_below);
   });
   lap("sampling");
-  parallel_for(pv.edges, threads_, [&](long long b, long long e) { k.adjust_edges(pv, fv, b, e); });
+  parallel_for(end_normals_.count(), threads_, [&](long long b, long long e) {
+    k.end_normals(fv, end_normals_, b, e, end_normal_.data());
+  });
+  parallel_for(pv.edges, threads_, [&](long long b, long long e) {
+    k.adjust_edges(pv, fv, end_normals_, end_normal_.data(), b, e);
+  });
   lap("edge_adjustment");
   if (normals || !rows) {
     FrameView fit = fv;

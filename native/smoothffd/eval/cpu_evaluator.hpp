@@ -53,8 +53,9 @@ class CpuEvaluator : public Evaluator {
   GridBasisLanes grid_lanes_;  // normal tessellation: grid points kLanes at a time
   OwnedPoints output_owned_;  // position tessellation: the output vertices each patch writes
   OwnedPoints render_owned_;  // compact normals: the render vertices each patch writes
+  EdgeEndNormals end_normals_;  // edge adjustment: its distinct end normals
   long long centre_widest_ = 0;  // the plan's longest centre row (floats)
-  std::vector<float> sample_value_, sample_jacobian_, edge_control_, patch_control_, patch_normal_;
+  std::vector<float> sample_value_, sample_jacobian_, end_normal_, edge_control_, patch_control_, patch_normal_;
 };
 
 }  // namespace sffd

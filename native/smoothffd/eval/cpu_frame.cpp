@@ -1,9 +1,42 @@
 // The per-frame loops of CpuEvaluator (eval/cpu_frame.hpp), compiled once per ISA.
 #include "smoothffd/eval/cpu_frame.hpp"
 
+#include <cstring>
+
 #include "smoothffd/eval/stages.hpp"
 
 namespace sffd {
+
+#if SFFD_ISA_PRIMARY  // plan-time part: the baseline copy only
+EdgeEndNormals make_edge_end_normals(const Plan& plan) {
+  // Per sub-vertex, the distinct rest normals (bitwise) of the edge ends at it: equal inputs
+  // give the same deformed normal, so each is computed once.
+  EdgeEndNormals en;
+  const int E = plan.edges;
+  en.edge_end.assign(4 * (size_t)E, -1);
+  std::vector<int> first(plan.sub_vertices, -1), next;  // per vertex: a list of its end normals
+  for (int e = 0; e < E; ++e)
+    for (int side = 0; side < 2; ++side) {
+      const int p = plan.edge_patch[2 * e + side];
+      if (p < 0) continue;
+      for (int end = 0; end < 2; ++end) {
+        const int v = plan.edge_vertex[2 * e + end];
+        const float* m = &plan.patch_adjust_normal[9 * (size_t)p + 3 * plan.edge_slot[4 * (size_t)e + 2 * side + end]];
+        int id = first[v];
+        while (id >= 0 && std::memcmp(&en.rest[3 * (size_t)id], m, 3 * sizeof(float)) != 0) id = next[id];
+        if (id < 0) {
+          id = (int)en.sample.size();
+          en.sample.push_back(v);
+          en.rest.insert(en.rest.end(), m, m + 3);
+          next.push_back(first[v]);
+          first[v] = id;
+        }
+        en.edge_end[4 * (size_t)e + 2 * side + end] = id;
+      }
+    }
+  return en;
+}
+#endif  // SFFD_ISA_PRIMARY
 
 SFFD_ISA_BEGIN
 
@@ -22,8 +55,31 @@ void sample_range(const PlanView& pv, const float* D, const SampleBatches& sb, l
   }
 }
 
-void adjust_edges(const PlanView& pv, const FrameView& fv, long long b, long long e) {
-  for (long long i = b; i < e; ++i) adjust_edge(pv, fv, (int)i);
+void end_normals(const FrameView& fv, const EdgeEndNormals& en, long long b, long long e, float* normals) {
+  const int* sample = en.sample.data();
+  const float* rest = en.rest.data();
+  for (long long i = b; i < e; ++i)
+    store3(normals + 3 * i, deformed_end_normal(fv.sample_jacobian + 9 * (long long)sample[i], load3(rest + 3 * i)));
+}
+
+// adjust_edge (stages.hpp) with the end normals read from normals (end_normals).
+void adjust_edges(const PlanView& pv, const FrameView& fv, const EdgeEndNormals& en, const float* normals,
+                  long long b, long long e) {
+  const int* edge_end = en.edge_end.data();
+  for (long long i = b; i < e; ++i) {
+    const int a = pv.edge_vertex[2 * i], bv = pv.edge_vertex[2 * i + 1];
+    const V3 Pa = load3(fv.sample_value + 3 * (long long)a), Pb = load3(fv.sample_value + 3 * (long long)bv);
+    const V3 Q1 = load3(fv.sample_value + 3 * (long long)pv.edge_constraint[2 * i]);
+    const V3 Q2 = load3(fv.sample_value + 3 * (long long)pv.edge_constraint[2 * i + 1]);
+    const uint8_t flags = pv.edge_flags[i];
+    const int* ids = edge_end + 4 * i;
+    V3 c[2];
+    edge_control_points_with(Pa, Pb, Q1, Q2, flags & (kSharpAtA | kSharpAtB), (flags & kKeepFitted) != 0,
+                             pv.edge_patch[2 * i + 1] >= 0,
+                             [&](int end, int side) { return load3(normals + 3 * (long long)ids[2 * side + end]); }, c);
+    store3(fv.edge_control + 6 * i, c[0]);
+    store3(fv.edge_control + 6 * i + 3, c[1]);
+  }
 }
 
 void fit_patches(const PlanView& pv, const FrameView& fv, const FitColumns& fc, long long b,
@@ -101,7 +157,7 @@ extern const CpuFrameKernels cpu_frame_kernels_v3 = {
 #else
 extern const CpuFrameKernels cpu_frame_kernels_baseline = {
 #endif
-    SFFD_ISA_NAME,        sample_range,         adjust_edges, fit_patches, row_patches,
+    SFFD_ISA_NAME,        sample_range,         end_normals, adjust_edges, fit_patches, row_patches,
     tessellate_positions, tessellate_normals,   tessellate_render_normals};
 
 }  // namespace sffd

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 #include "smoothffd/core/isa.hpp"
 #include "smoothffd/eval/cpu_fitting.hpp"
@@ -18,13 +19,30 @@
 
 namespace sffd {
 
+// The edge adjustment's deformed end normals (stages.hpp, deformed_end_normal), each computed
+// once a frame: an edge end's normal depends only on its vertex's Jacobian and the rest
+// adjustment normal of the patch corner there, and the patches around a smooth vertex share
+// that normal, so about twelve edge ends (six edges, two sides) read each one.
+struct EdgeEndNormals {
+  std::vector<int> sample;   // the sub-vertex (= its sample) of each distinct end normal
+  std::vector<float> rest;   // 3 per end normal: the rest adjustment normal
+  std::vector<int> edge_end; // 4 per edge, as Plan::edge_slot (2 side + end): its end normal, -1 without side 1
+  long long count() const { return (long long)sample.size(); }
+};
+
+EdgeEndNormals make_edge_end_normals(const Plan& plan);
+
 struct CpuFrameKernels {
   const char* isa;  // "x86-64-v2", "x86-64-v3", ... (SFFD_ISA_NAME of the copy)
   // Sampling of batches [b, e): F into value; J into jacobian unless it is null, and then
   // only for the batches holding a sample numbered below jacobian_below (>= samples: all).
   void (*sample)(const PlanView& pv, const float* D, const SampleBatches& sb, long long b,
                  long long e, float* value, float* jacobian, int jacobian_below);
-  void (*adjust_edges)(const PlanView& pv, const FrameView& fv, long long b, long long e);
+  // The deformed end normals [b, e) of en into normals (3 each), then the adjusted control
+  // points of edges [b, e) into fv.edge_control from them: bitwise adjust_edge's (stages.hpp).
+  void (*end_normals)(const FrameView& fv, const EdgeEndNormals& en, long long b, long long e, float* normals);
+  void (*adjust_edges)(const PlanView& pv, const FrameView& fv, const EdgeEndNormals& en, const float* normals,
+                       long long b, long long e);
   // Geometry patches into fv.patch_control, normal patches into fv.patch_normal, each unless
   // null.
   void (*fit_patches)(const PlanView& pv, const FrameView& fv, const FitColumns& fc, long long b,

@@ -119,31 +119,38 @@ SFFD_HD V3 adjust_control_point(V3 c, V3 P, V3 n0, V3 n1, bool has_n1, bool shar
   return c - dot(c - P, n) * n;
 }
 
-// 2. Edge control points of an edge from its end samples Pa, Pb (Jacobians Ja, Jb) and the
-// two constraint samples Q1, Q2 (cubic interpolation at 0, 1/3, 2/3, 1), then adjusted at both
-// ends: c[0] next to a, c[1] next to b. sharp: bit 0 sharp at a, bit 1 at b; has1: a second
-// patch (side 1); rest(end, side): the rest adjustment normal of side `side`'s patch at that
-// end (the plan's tables for adjust_edge, the patch record for the CUDA inline kernel, whose
-// two patches of an edge so compute bitwise the same points). keep: the edge keeps the fitted
-// points (kKeepFitted: non-manifold edges and flat faces' edges).
-template <class RestNormal>
-SFFD_HD void edge_control_points(V3 Pa, V3 Pb, V3 Q1, V3 Q2, const float* Ja, const float* Jb, unsigned sharp,
-                                 bool keep, bool has1, const RestNormal& rest, V3 c[2]) {
+// 2. Edge control points of an edge from its end samples Pa, Pb and the two constraint
+// samples Q1, Q2 (cubic interpolation at 0, 1/3, 2/3, 1), then adjusted at both ends: c[0]
+// next to a, c[1] next to b. sharp: bit 0 sharp at a, bit 1 at b; has1: a second patch
+// (side 1); normal(end, side): the deformed adjustment normal of side `side`'s patch at that
+// end (deformed_end_normal). keep: the edge keeps the fitted points (kKeepFitted: non-manifold
+// edges and flat faces' edges).
+template <class EndNormal>
+SFFD_HD void edge_control_points_with(V3 Pa, V3 Pb, V3 Q1, V3 Q2, unsigned sharp, bool keep, bool has1,
+                                      const EndNormal& normal, V3 c[2]) {
   const float s6 = 1.0f / 6.0f;
   c[0] = s6 * (-5.0f * Pa + 18.0f * Q1 - 9.0f * Q2 + 2.0f * Pb);
   c[1] = s6 * (2.0f * Pa - 9.0f * Q1 + 18.0f * Q2 - 5.0f * Pb);
   if (keep) return;
   for (int end = 0; end < 2; ++end) {
-    const float* J = end ? Jb : Ja;
-    const V3 m0 = rest(end, 0);
-    const V3 n0 = normalized_or(cofactor_apply(J, m0), m0);
-    V3 n1 = n0;
-    if (has1) {
-      const V3 m1 = rest(end, 1);
-      n1 = normalized_or(cofactor_apply(J, m1), m1);
-    }
+    const V3 n0 = normal(end, 0);
+    const V3 n1 = has1 ? normal(end, 1) : n0;
     c[end] = adjust_control_point(c[end], end ? Pb : Pa, n0, n1, has1, (sharp >> end) & 1u);
   }
+}
+
+// The rest adjustment normal m at an edge end deformed by the Jacobian J there (Eq. 3).
+SFFD_HD V3 deformed_end_normal(const float* J, V3 m) { return normalized_or(cofactor_apply(J, m), m); }
+
+// edge_control_points_with the end normals deformed here from the Jacobians Ja, Jb at the ends
+// and rest(end, side), the rest adjustment normals (the plan's tables for adjust_edge, the
+// patch record for the CUDA inline kernel, whose two patches of an edge so compute bitwise the
+// same points).
+template <class RestNormal>
+SFFD_HD void edge_control_points(V3 Pa, V3 Pb, V3 Q1, V3 Q2, const float* Ja, const float* Jb, unsigned sharp,
+                                 bool keep, bool has1, const RestNormal& rest, V3 c[2]) {
+  edge_control_points_with(Pa, Pb, Q1, Q2, sharp, keep, has1,
+                           [&](int end, int side) { return deformed_end_normal(end ? Jb : Ja, rest(end, side)); }, c);
 }
 
 // edge_control_points of edge e from the plan's edge tables (once per edge, so both patches

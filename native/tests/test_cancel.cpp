@@ -7,7 +7,9 @@
 #include <chrono>
 #include <mutex>
 #include <set>
+#include <stdexcept>
 #include <thread>
+#include <vector>
 
 #include "smoothffd/core/cancel.hpp"
 #include "smoothffd/core/parallel.hpp"
@@ -90,6 +92,44 @@ TEST(Cancel, ParallelForSlicesOnlyUnderAScope) {
   EXPECT_LT(done.load(), n);
   EXPECT_EQ(check.threads.size(), 1u);
   EXPECT_EQ(*check.threads.begin(), std::this_thread::get_id());
+}
+
+// parallel_for's chunks run on persistent workers (core/parallel.hpp, detail::WorkerPool):
+// a later loop finds workers that ran chunks of an earlier one. A loop started inside a chunk,
+// or by another thread while the pool is busy, starts threads of its own; an exception of any
+// chunk reaches the caller, and the pool works on.
+TEST(Cancel, ParallelForKeepsItsWorkers) {
+  static thread_local int chunks_run = 0;
+  const long long n = 1 << 16;
+  const auto caller = std::this_thread::get_id();
+  parallel_for(n, 4, [&](long long, long long) { ++chunks_run; });
+  std::atomic<int> reused{0}, others{0};
+  parallel_for(n, 4, [&](long long, long long) {
+    if (std::this_thread::get_id() == caller) return;
+    ++others;
+    if (chunks_run > 0) ++reused;
+    ++chunks_run;
+  });
+  EXPECT_GT(others.load(), 0);
+  EXPECT_EQ(reused.load(), others.load());
+
+  std::vector<std::atomic<int>> seen(n);
+  auto count = [&](long long b, long long e) {
+    for (long long i = b; i < e; ++i) seen[i]++;
+  };
+  parallel_for(2048, 2, [&](long long, long long) { parallel_for(n, 4, count); });  // 2 chunks, 2 nested loops
+  std::thread other([&] { parallel_for(n, 4, count); });
+  parallel_for(n, 4, count);
+  other.join();
+  for (long long i = 0; i < n; ++i) ASSERT_EQ(seen[i].load(), 4) << i;
+
+  EXPECT_THROW(parallel_for(n, 4, [&](long long b, long long) {
+                 if (b > 0) throw std::runtime_error("a worker's chunk");
+               }),
+               std::runtime_error);
+  std::atomic<long long> total{0};
+  parallel_for(n, 4, [&](long long b, long long e) { total += e - b; });
+  EXPECT_EQ(total.load(), n);
 }
 
 // build_plan stops at a check; the next build gives the same plan as an uncancelled one.

@@ -99,27 +99,49 @@ TEST(CpuSampling, BatchesMatchScalarSamplePoint) {
   EXPECT_GT(weighted, 300);
 }
 
+namespace {
+
+// A level-2 plan of m in s with random control values D (in +-0.2) and every sample's value
+// and Jacobian from the scalar sample_point; false for a degenerate random mesh (not these
+// tests' subject).
+struct SampledPlan {
+  Plan plan;
+  std::vector<float> D, value, jac;
+};
+
+bool sampled_plan(const InputMesh& m, const LatticeSpec& s, std::mt19937& rng, SampledPlan& out) {
+  std::uniform_real_distribution<float> jitter(-0.2f, 0.2f);
+  PlanOptions opt;
+  opt.level = 2;
+  try {
+    out.plan = build_plan(m, s, opt);
+  } catch (const std::invalid_argument&) {
+    return false;
+  }
+  out.D = zero_values(s);
+  for (float& d : out.D) d = jitter(rng);
+  const PlanView pv = host_view(out.plan);
+  out.value.assign(3 * (size_t)out.plan.samples, 0.0f);
+  out.jac.assign(9 * (size_t)out.plan.samples, 0.0f);
+  for (int i = 0; i < out.plan.samples; ++i) sample_point(pv, out.D.data(), i, &out.value[3 * i], &out.jac[9 * i]);
+  return true;
+}
+
+}  // namespace
+
 TEST(CpuFitting, LanesMatchScalarFitPatch) {
   std::mt19937 rng(11);
-  std::uniform_real_distribution<float> jitter(-0.2f, 0.2f);
   int checked = 0;
   for (int trial = 0; trial < 30; ++trial) {
     LatticeSpec s = trial < 25 ? random_lattice(rng) : bspline_box(trial % 2 ? 5 : 3, 7, -0.1, 1.1);
     InputMesh m = random_mesh(rng);
-    PlanOptions opt;
-    opt.level = 2;
-    Plan plan;
-    try {
-      plan = build_plan(m, s, opt);
-    } catch (const std::invalid_argument&) {
-      continue;
-    }
-    std::vector<float> D = zero_values(s);
-    for (float& d : D) d = jitter(rng);
+    SampledPlan sp;
+    if (!sampled_plan(m, s, rng, sp)) continue;
+    const Plan& plan = sp.plan;
+    std::vector<float>& value = sp.value;
+    std::vector<float>& jac = sp.jac;
     const PlanView pv = host_view(plan);
-    std::vector<float> value(3 * (size_t)plan.samples), jac(9 * (size_t)plan.samples);
     std::vector<float> edge(6 * (size_t)plan.edges + 6);
-    for (int i = 0; i < plan.samples; ++i) sample_point(pv, D.data(), i, &value[3 * i], &jac[9 * i]);
     // Singular Jacobians at every 5th sample past the corners: zero cofactor, fallback normals.
     for (int i = plan.sub_vertices; i < plan.samples; i += 5)
       for (int r = 0; r < 9; ++r) jac[9 * (size_t)i + r] = 0.0f;
@@ -173,24 +195,16 @@ TEST(CpuTessellation, GridNormalsMatchScalarTessellateNormal) {
 
 TEST(CpuEdges, EndNormalTableMatchesAdjustEdge) {
   std::mt19937 rng(23);
-  std::uniform_real_distribution<float> jitter(-0.2f, 0.2f);
   int checked = 0, shared = 0;
   for (int trial = 0; trial < 36; ++trial) {
     LatticeSpec s = trial % 4 == 3 ? blender_box(BlenderInterp::BSpline, 4, -0.1, 1.1) : random_lattice(rng);
     InputMesh m = trial % 6 == 0 ? octahedron() : trial % 6 == 1 ? cube_quads() : random_mesh(rng);
-    PlanOptions opt;
-    opt.level = 2;
-    Plan plan;
-    try {
-      plan = build_plan(m, s, opt);
-    } catch (const std::invalid_argument&) {
-      continue;
-    }
-    std::vector<float> D = zero_values(s);
-    for (float& d : D) d = jitter(rng);
+    SampledPlan sp;
+    if (!sampled_plan(m, s, rng, sp)) continue;
+    const Plan& plan = sp.plan;
+    std::vector<float>& value = sp.value;
+    std::vector<float>& jac = sp.jac;
     const PlanView pv = host_view(plan);
-    std::vector<float> value(3 * (size_t)plan.samples), jac(9 * (size_t)plan.samples);
-    for (int i = 0; i < plan.samples; ++i) sample_point(pv, D.data(), i, &value[3 * i], &jac[9 * i]);
     for (int i = 0; i < plan.sub_vertices; i += 7)  // singular: the fallback normals
       for (int r = 0; r < 9; ++r) jac[9 * (size_t)i + r] = 0.0f;
     std::vector<float> edge0(6 * (size_t)plan.edges), edge1(6 * (size_t)plan.edges, -1.0f);

@@ -31,7 +31,6 @@ inline int default_threads() {
   return n == 0 ? 1 : (int)n;
 }
 
-
 namespace detail {
 
 // The workers parallel_for hands its chunks to. A frame runs several short stages (about a
@@ -50,9 +49,6 @@ class WorkerPool {
   // Runs task(c) for every c in [0, n), in the calling thread and in up to n - 1 workers, and
   // returns when all are done, rethrowing the first exception of a task; false (nothing run)
   // when the pool is busy or belongs to another process.
-  // The workers started so far (tests).
-  int workers() const { return workers_; }
-
   bool run(long long n, const std::function<void(long long)>& task) {
     bool expected = false;
     if (!busy_.compare_exchange_strong(expected, true)) return false;
@@ -82,6 +78,9 @@ class WorkerPool {
     if (error_) std::rethrow_exception(error_);
     return true;
   }
+
+  // The workers started so far (tests).
+  int workers() const { return workers_; }
 
  private:
   WorkerPool() {

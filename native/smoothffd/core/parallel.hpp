@@ -73,7 +73,7 @@ class WorkerPool {
     work(task, n);
     spin_while([&] { return done_.load() < n; }, std::chrono::microseconds(200));
     std::unique_lock<std::mutex> lock(mutex_);
-    finished_.wait(lock, [&] { return done_.load() == n && active_ == 0; });
+    wait(finished_, lock, [&] { return done_.load() == n && active_ == 0; });
     task_ = nullptr;
     if (error_) std::rethrow_exception(error_);
     return true;
@@ -98,6 +98,15 @@ class WorkerPool {
       __builtin_ia32_pause();
 #endif
       if (i % 64 == 0 && std::chrono::steady_clock::now() > end) return;
+    }
+  }
+
+  // cv.wait(lock, ready) through wait_for: condition_variable::wait is a libstdc++ symbol of
+  // GCC 12 (GLIBCXX_3.4.30), newer than the wheels' manylinux_2_34 allows; wait_for is inline
+  // over pthread_cond_clockwait (glibc 2.34).
+  template <class Ready>
+  static void wait(std::condition_variable& cv, std::unique_lock<std::mutex>& lock, const Ready& ready) {
+    while (!cv.wait_for(lock, std::chrono::milliseconds(100), ready)) {
     }
   }
 
@@ -133,7 +142,7 @@ class WorkerPool {
       long long n;
       {
         std::unique_lock<std::mutex> lock(mutex_);
-        wake_.wait(lock, [&] { return generation_.load() != seen; });
+        wait(wake_, lock, [&] { return generation_.load() != seen; });
         seen = generation_.load();
         if (!task_) continue;  // woke after that job had ended
         task = task_;

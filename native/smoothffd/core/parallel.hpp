@@ -103,10 +103,12 @@ class WorkerPool {
 
   // cv.wait(lock, ready) through wait_for: condition_variable::wait is a libstdc++ symbol of
   // GCC 12 (GLIBCXX_3.4.30), newer than the wheels' manylinux_2_34 allows; wait_for is inline
-  // over pthread_cond_clockwait (glibc 2.34).
+  // over pthread_cond_clockwait (glibc 2.34). What ready() reads changes under the mutex (or,
+  // done_, before a change under it) and is then notified, so no wake-up is lost and the
+  // timeout only bounds a wait; it is long, so that idle workers do not wake.
   template <class Ready>
   static void wait(std::condition_variable& cv, std::unique_lock<std::mutex>& lock, const Ready& ready) {
-    while (!cv.wait_for(lock, std::chrono::milliseconds(100), ready)) {
+    while (!cv.wait_for(lock, std::chrono::seconds(60), ready)) {
     }
   }
 

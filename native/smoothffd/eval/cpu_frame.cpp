@@ -65,20 +65,9 @@ void end_normals(const FrameView& fv, const EdgeEndNormals& en, long long b, lon
 // adjust_edge (stages.hpp) with the end normals read from normals (end_normals).
 void adjust_edges(const PlanView& pv, const FrameView& fv, const EdgeEndNormals& en, const float* normals,
                   long long b, long long e) {
-  const int* edge_end = en.edge_end.data();
   for (long long i = b; i < e; ++i) {
-    const int a = pv.edge_vertex[2 * i], bv = pv.edge_vertex[2 * i + 1];
-    const V3 Pa = load3(fv.sample_value + 3 * (long long)a), Pb = load3(fv.sample_value + 3 * (long long)bv);
-    const V3 Q1 = load3(fv.sample_value + 3 * (long long)pv.edge_constraint[2 * i]);
-    const V3 Q2 = load3(fv.sample_value + 3 * (long long)pv.edge_constraint[2 * i + 1]);
-    const uint8_t flags = pv.edge_flags[i];
-    const int* ids = edge_end + 4 * i;
-    V3 c[2];
-    edge_control_points_with(Pa, Pb, Q1, Q2, flags & (kSharpAtA | kSharpAtB), (flags & kKeepFitted) != 0,
-                             pv.edge_patch[2 * i + 1] >= 0,
-                             [&](int end, int side) { return load3(normals + 3 * (long long)ids[2 * side + end]); }, c);
-    store3(fv.edge_control + 6 * i, c[0]);
-    store3(fv.edge_control + 6 * i + 3, c[1]);
+    const int* ids = en.edge_end.data() + 4 * i;
+    adjust_edge_with(pv, fv, (int)i, [&](int end, int side) { return load3(normals + 3 * (long long)ids[2 * side + end]); });
   }
 }
 

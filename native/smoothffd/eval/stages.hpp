@@ -153,30 +153,31 @@ SFFD_HD void edge_control_points(V3 Pa, V3 Pb, V3 Q1, V3 Q2, const float* Ja, co
                            [&](int end, int side) { return deformed_end_normal(end ? Jb : Ja, rest(end, side)); }, c);
 }
 
-// edge_control_points of edge e from the plan's edge tables (once per edge, so both patches
-// on it share the result).
-SFFD_HD void edge_control_points(const PlanView& pv, int e, V3 Pa, V3 Pb, V3 Q1, V3 Q2, const float* Ja,
-                                 const float* Jb, V3 c[2]) {
+// The adjusted control points of edge e from the frame's sample buffers and the plan's edge
+// tables (once per edge, so both patches on it share the result), the end normals from
+// normal(end, side) (the CPU reads its per-frame table of them: eval/cpu_frame.hpp).
+template <class EndNormal>
+SFFD_HD void adjust_edge_with(const PlanView& pv, const FrameView& fv, int e, const EndNormal& normal) {
+  const int a = pv.edge_vertex[2 * e], b = pv.edge_vertex[2 * e + 1];
+  const V3 Pa = load3(fv.sample_value + 3 * (long long)a), Pb = load3(fv.sample_value + 3 * (long long)b);
+  const V3 Q1 = load3(fv.sample_value + 3 * (long long)pv.edge_constraint[2 * e]);
+  const V3 Q2 = load3(fv.sample_value + 3 * (long long)pv.edge_constraint[2 * e + 1]);
   const uint8_t flags = pv.edge_flags[e];
-  const int p0 = pv.edge_patch[2 * e], p1 = pv.edge_patch[2 * e + 1];
-  auto rest = [&](int end, int side) {
-    return load3(pv.patch_adjust_normal + 9 * (long long)(side ? p1 : p0) + 3 * pv.edge_slot[4 * e + 2 * side + end]);
-  };
-  edge_control_points(Pa, Pb, Q1, Q2, Ja, Jb, flags & (kSharpAtA | kSharpAtB), (flags & kKeepFitted) != 0, p1 >= 0,
-                      rest, c);
-}
-
-// adjust_edge from the frame's sample buffers.
-SFFD_HD void adjust_edge(const PlanView& pv, const FrameView& fv, int e) {
-  int a = pv.edge_vertex[2 * e], b = pv.edge_vertex[2 * e + 1];
-  V3 Pa = load3(fv.sample_value + 3 * (long long)a), Pb = load3(fv.sample_value + 3 * (long long)b);
-  V3 Q1 = load3(fv.sample_value + 3 * (long long)pv.edge_constraint[2 * e]);
-  V3 Q2 = load3(fv.sample_value + 3 * (long long)pv.edge_constraint[2 * e + 1]);
   V3 c[2];
-  edge_control_points(pv, e, Pa, Pb, Q1, Q2, fv.sample_jacobian + 9 * (long long)a,
-                      fv.sample_jacobian + 9 * (long long)b, c);
+  edge_control_points_with(Pa, Pb, Q1, Q2, flags & (kSharpAtA | kSharpAtB), (flags & kKeepFitted) != 0,
+                           pv.edge_patch[2 * e + 1] >= 0, normal, c);
   store3(fv.edge_control + 6 * (long long)e, c[0]);
   store3(fv.edge_control + 6 * (long long)e + 3, c[1]);
+}
+
+// adjust_edge_with the end normals deformed here from the end samples' Jacobians.
+SFFD_HD void adjust_edge(const PlanView& pv, const FrameView& fv, int e) {
+  const int ends[2] = {pv.edge_vertex[2 * e], pv.edge_vertex[2 * e + 1]};
+  adjust_edge_with(pv, fv, e, [&](int end, int side) {
+    const V3 m = load3(pv.patch_adjust_normal + 9 * (long long)pv.edge_patch[2 * e + side] +
+                       3 * pv.edge_slot[4 * e + 2 * side + end]);
+    return deformed_end_normal(fv.sample_jacobian + 9 * (long long)ends[end], m);
+  });
 }
 
 // 3. Constrained fit of the geometry and normal patches of patch p together (Eq. 13), then

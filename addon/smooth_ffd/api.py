@@ -119,7 +119,7 @@ def apply_smooth_ffd(obj, mod):
                                                own_input=True):
             raise RuntimeError(f"Smooth FFD cannot be applied: {status(mod)}")
         ro = modifier_update.result_object(obj, mod, create=False)
-        so = compat.get_modifier_input(mod, "Stack Object") if _has_stack_input(mod) else None
+        hidden = _hidden_objects(mod)
         host = bake.bake_object(mod)
         depsgraph.update()
         if obj.data.users > 1:
@@ -134,7 +134,7 @@ def apply_smooth_ffd(obj, mod):
         # its plan can be hundreds of MB at the render level
         modifier_update.forget(ro=ro)
         _delete_result(ro)
-        _delete_stack(so)
+        _delete_hidden(hidden)
         if host is not None and host.users == 0:
             bake.remove_host(host)
     return obj.data
@@ -144,22 +144,32 @@ def remove_smooth_ffd(obj, mod):
     """Removes the modifier; the object shows its (never modified) source mesh again."""
     linked.check_writable(obj, mod, "remove")
     ro = modifier_update.result_object(obj, mod, create=False)
-    so = compat.get_modifier_input(mod, "Stack Object") if _has_stack_input(mod) else None
+    hidden = _hidden_objects(mod)
     modifier_update.forget(obj, mod)
     bake.clear(obj, mod)
     obj.modifiers.remove(mod)
     _delete_result(ro)
-    _delete_stack(so)
+    _delete_hidden(hidden)
 
 
-def _has_stack_input(mod):
-    return nodegroup.layout(mod.node_group) in nodegroup.STACK_LAYOUTS
+def _hidden_objects(mod):
+    """The modifier's hidden objects besides its result: (object, the key marking it ours)
+    for its Stack Object (stack_input) and its Result Points (modifier_update.points_object),
+    where its group has them."""
+    found = []
+    for layouts, name, key in ((nodegroup.STACK_LAYOUTS, "Stack Object", stack_input.STACK_KEY),
+                               (nodegroup.POINTS_LAYOUTS, "Result Points",
+                                modifier_update.POINTS_KEY)):
+        if nodegroup.layout(mod.node_group) in layouts:
+            found.append((compat.get_modifier_input(mod, name), key))
+    return found
 
 
-def _delete_stack(so):
-    """The modifier's stack object (stack_input), once nothing uses it."""
-    if so is not None and so.get(stack_input.STACK_KEY) is not None and so.users == 0:
-        stack_input.remove(so)
+def _delete_hidden(hidden):
+    """Deletes the hidden objects _hidden_objects found, once nothing uses them."""
+    for ob, key in hidden:
+        if ob is not None and ob.get(key) is not None and ob.users == 0:
+            stack_input.remove(ob)
 
 
 def _delete_result(ro):

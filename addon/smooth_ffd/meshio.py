@@ -162,6 +162,15 @@ def write_positions(mesh, res):
     compat.set_positions(mesh, res.positions)
 
 
+def write_vertices(mesh, positions):
+    """Makes a mesh of vertices only hold `positions` (resized when their number changed)."""
+    if len(mesh.vertices) != len(positions):
+        mesh.clear_geometry()
+        mesh.vertices.add(len(positions))
+    compat.set_positions(mesh, positions)
+    mesh.update()
+
+
 def is_compact(res):
     """Whether res is the core's compact layout (normals once per render vertex)."""
     return hasattr(res, "render_triangles")

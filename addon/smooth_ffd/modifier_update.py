@@ -16,6 +16,7 @@ TOPOLOGY_KEY = "smooth_ffd_topology"    # result mesh -> plan that built its top
 NORMALS_KEY = "smooth_ffd_normals"      # result mesh -> "exact" or "fast"
 EXTRAS_KEY = "smooth_ffd_extras"        # result mesh -> topology + carried UV maps / groups
 OUTPUT_KEY = "smooth_ffd_output"        # result mesh -> its triangles, faces, sharp edges
+POINTS_KEY = "smooth_ffd_points"        # points object -> the uid of its result object
 
 
 class _State:
@@ -123,6 +124,48 @@ def result_object(obj, mod, create=True):
     uid(ro)
     compat.set_modifier_input(mod, "Result Object", ro)
     return ro
+
+
+def points_object(obj, mod, ro, create=True):
+    """The hidden mesh object of vertices only through which positions-only updates reach
+    the group (its Result Points, nodegroup), one per result object, never linked to a
+    scene; None when the modifier has none of its own and create is False."""
+    po = compat.get_modifier_input(mod, "Result Points")
+    if po is not None and po.type == 'MESH' and po.get(POINTS_KEY) == uid(ro) \
+            and linked.local_result(po):
+        return po
+    if not create:
+        return None
+    name = f"{obj.name}.{mod.name}.points"
+    po = bpy.data.objects.new(name, bpy.data.meshes.new(name))
+    po[POINTS_KEY] = uid(ro)
+    return po
+
+
+def _sends_points(mod):
+    """Whether this Blender sends positions-only updates through the Result Points (before
+    3.6, nodegroup) and this modifier's group has them."""
+    return compat.POSITIONS_THROUGH_POINTS and \
+        nodegroup.layout(mod.node_group) in nodegroup.POINTS_LAYOUTS
+
+
+def _set_points(obj, mod, po):
+    if compat.get_modifier_input(mod, "Result Points") != po:
+        compat.set_modifier_input(mod, "Result Points", po)   # a new relation: re-tag
+        obj.update_tag()
+
+
+def _empty_points(obj, mod, ro):
+    """After a write of the whole result: the group shows the result mesh as it is. Its own
+    points object is emptied (and kept for the next positions-only update), another's (a
+    duplicate's original's) let go."""
+    if nodegroup.layout(mod.node_group) not in nodegroup.POINTS_LAYOUTS:
+        return
+    po = points_object(obj, mod, ro, create=False)
+    if po is not None and len(po.data.vertices):
+        po.data.clear_geometry()
+        po.data.update()
+    _set_points(obj, mod, po)
 
 
 def _owned_by(ro, obj, mod):
@@ -359,7 +402,8 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
             # knot-plane cuts): then only positions and what lies on the input move.
             st.output = (st.plan_key, inputs.digest(res.triangles, res.face_index, res.sharp_edges,
                                                  len(res.positions), source.material_index))
-        times = _write_result(obj, ro, res, source, inputs.digest(plan_key), exact, st, groups)
+        times = _write_result(obj, mod, ro, res, source, inputs.digest(plan_key), exact, st,
+                              groups)
         normals = times.pop("normals")
         t2 = time.perf_counter()
         st.last_key = key
@@ -647,7 +691,7 @@ def _materials(obj):
         list(obj.data.materials)
 
 
-def _write_result(obj, ro, res, source, topology_token, exact, st, groups=True):
+def _write_result(obj, mod, ro, res, source, topology_token, exact, st, groups=True):
     """Writes res into the result mesh; returns timings (ms) and the normals path used.
     groups: carry the vertex groups (else the result has none)."""
     mesh = ro.data
@@ -660,6 +704,24 @@ def _write_result(obj, ro, res, source, topology_token, exact, st, groups=True):
     # 4.5+ the attribute removed (below).
     rebuild = not same or (mesh.get(NORMALS_KEY) == "exact" and mode == "fast"
                            and not compat.HAS_FREE_NORMAL_ATTRIBUTE)
+    extras_token = inputs.digest(topology_token, source.extras_key, groups)
+    if not rebuild and mode == "fast" and mesh.get(NORMALS_KEY) == "fast" \
+            and mesh.get(TOPOLOGY_KEY) == topology_token \
+            and mesh.get(EXTRAS_KEY) == extras_token and _sends_points(mod) and ro.users == 1:
+        # Only the positions change: before 3.6 a write to the result mesh makes the
+        # depsgraph copy all of it again, the points object is vertices only (nodegroup).
+        # The result mesh gets them too, untagged: it stays the result for everyone who
+        # reads it (stack_input, bake, Apply) and in the saved file. Its evaluated copy keeps
+        # the old positions, so only while nothing but this modifier evaluates it (users:
+        # a Smooth FFD below has it as its Stack Object, stack_input).
+        meshio.write_positions(mesh, res)
+        po = points_object(obj, mod, ro)
+        meshio.write_vertices(po.data, res.positions)
+        _set_points(obj, mod, po)
+        t1 = time.perf_counter()
+        return {"normals": "from geometry", "rebuilt": False, "mesh_write_ms": 1e3 * (t1 - t0),
+                "carry_ms": 0.0, "carry_add_calls": 0, "normals_ms": 0.0, "tag_ms": 0.0,
+                "points": True}
     if rebuild:
         meshio.write_topology(mesh, res, source, _materials(obj))
         mesh[OUTPUT_KEY] = st.output[1]
@@ -670,7 +732,6 @@ def _write_result(obj, ro, res, source, topology_token, exact, st, groups=True):
             meshio.write_rest_positions(mesh, res)
     mesh[TOPOLOGY_KEY] = topology_token
     # UV maps and vertex groups: with a new topology, or when only they changed.
-    extras_token = inputs.digest(topology_token, source.extras_key, groups)
     carry_ms, carry_calls = 0.0, 0
     if rebuild or mesh.get(EXTRAS_KEY) != extras_token:
         tc = time.perf_counter()
@@ -695,7 +756,8 @@ def _write_result(obj, ro, res, source, topology_token, exact, st, groups=True):
     mesh[NORMALS_KEY] = mode
     t2 = time.perf_counter()
     mesh.update()
+    _empty_points(obj, mod, ro)
     t3 = time.perf_counter()
     return {"normals": path, "rebuilt": rebuild, "mesh_write_ms": 1e3 * (t1 - t0),
             "carry_ms": carry_ms, "carry_add_calls": carry_calls,
-            "normals_ms": 1e3 * (t2 - t1), "tag_ms": 1e3 * (t3 - t2)}
+            "normals_ms": 1e3 * (t2 - t1), "tag_ms": 1e3 * (t3 - t2), "points": False}

@@ -19,7 +19,7 @@ Layouts (the group's GROUP_TAG value): 1, Backend a text input (Blender 3.4-4.0)
 menu (4.1+: a menu socket feeding a Menu Switch node, which defines the items); 3 and 4, the
 same with the frame ranges and the bake (Show Result folded into the result's frame range);
 5 and 6, the same with the Stack Object and its input check; 7 and 8, the same with the Input
-Copy. Files made with an older layout are moved to this Blender's when opened (migrate),
+Copy; 9 and 10, the same with the Result Points. Files made with an older layout are moved to this Blender's when opened (migrate),
 keeping every setting.
 
 Input Copy (an int k, 0: off): where other modifiers follow it, the evaluated object shows
@@ -30,6 +30,14 @@ carries its input mesh once more as an instance at scale 0 (invisible), translat
 pass instances on unchanged, and so does this group where it shows a result or a bake (in
 layouts 7 and 8 the input's instances go on beside it, as Blender's Lattice modifier leaves
 them), so the copy reaches the evaluated object.
+
+Result Points (layouts 9 and 10): a hidden mesh of vertices only. Where it has as many
+vertices as the result mesh, the group moves the result's vertices to its positions (Sample
+Index by index, Set Position); else (no object, or emptied) the result is shown as it is. On
+Blender before 3.6 (no implicit sharing: every change to the result mesh copies all of it
+again, its topology, UV maps and attributes, in the depsgraph) the add-on sends
+positions-only updates (live editing without exact normals) through it and leaves the result
+mesh's topology untouched (modifier_update.write_points); every other write empties it.
 """
 import bpy
 
@@ -40,10 +48,13 @@ GROUP_TAG = "smooth_ffd_group"   # custom property marking our group (value: lay
 TEXT_LAYOUT, MENU_LAYOUT = 1, 2              # before the frame ranges (files of older add-ons)
 TEXT_FRAMES_LAYOUT, MENU_FRAMES_LAYOUT = 3, 4   # before the Stack Object (older add-ons)
 TEXT_STACK_LAYOUT, MENU_STACK_LAYOUT = 5, 6      # before the Input Copy (older add-ons)
-TEXT_COPY_LAYOUT, MENU_COPY_LAYOUT = 7, 8
-GROUP_LAYOUT = MENU_COPY_LAYOUT if compat.HAS_MENU_SOCKET else TEXT_COPY_LAYOUT
-MENU_LAYOUTS = (MENU_LAYOUT, MENU_FRAMES_LAYOUT, MENU_STACK_LAYOUT, MENU_COPY_LAYOUT)
-COPY_LAYOUTS = (TEXT_COPY_LAYOUT, MENU_COPY_LAYOUT)
+TEXT_COPY_LAYOUT, MENU_COPY_LAYOUT = 7, 8      # before the Result Points (older add-ons)
+TEXT_POINTS_LAYOUT, MENU_POINTS_LAYOUT = 9, 10
+GROUP_LAYOUT = MENU_POINTS_LAYOUT if compat.HAS_MENU_SOCKET else TEXT_POINTS_LAYOUT
+MENU_LAYOUTS = (MENU_LAYOUT, MENU_FRAMES_LAYOUT, MENU_STACK_LAYOUT, MENU_COPY_LAYOUT,
+                MENU_POINTS_LAYOUT)
+POINTS_LAYOUTS = (TEXT_POINTS_LAYOUT, MENU_POINTS_LAYOUT)
+COPY_LAYOUTS = (TEXT_COPY_LAYOUT, MENU_COPY_LAYOUT) + POINTS_LAYOUTS
 STACK_LAYOUTS = (TEXT_STACK_LAYOUT, MENU_STACK_LAYOUT) + COPY_LAYOUTS
 FRAMES_LAYOUTS = (TEXT_FRAMES_LAYOUT, MENU_FRAMES_LAYOUT) + STACK_LAYOUTS
 LAYOUTS = (TEXT_LAYOUT, MENU_LAYOUT) + FRAMES_LAYOUTS
@@ -82,10 +93,14 @@ STACK_INTERNAL_INPUTS = FRAMES_INTERNAL_INPUTS + (
     ("Stack Object", 'NodeSocketObject', None, None, None,
      "Internal: the vertices of the input the result was computed from (stack_input)"),
 )
-INTERNAL_INPUTS = STACK_INTERNAL_INPUTS + (
+COPY_INTERNAL_INPUTS = STACK_INTERNAL_INPUTS + (
     ("Input Copy", 'NodeSocketInt', 0, None, None,
      "Internal: nonzero while other modifiers follow: the input also passes as a hidden "
      "instance (stack_input)"),
+)
+INTERNAL_INPUTS = COPY_INTERNAL_INPUTS + (
+    ("Result Points", 'NodeSocketObject', None, None, None,
+     "Internal: the result's vertex positions, when they were sent without the result mesh"),
 )
 INPUTS = SETTINGS + INTERNAL_INPUTS
 INTERNAL = tuple(name for name, *_ in INTERNAL_INPUTS)
@@ -134,8 +149,9 @@ def _build_group(group_layout=GROUP_LAYOUT):
     frames = group_layout in FRAMES_LAYOUTS
     stack = group_layout in STACK_LAYOUTS
     copy = group_layout in COPY_LAYOUTS
+    points = group_layout in POINTS_LAYOUTS
     compat.new_group_socket(group, 'INPUT', 'NodeSocketGeometry', "Geometry")
-    internal = INTERNAL_INPUTS if copy else STACK_INTERNAL_INPUTS if stack else \
+    internal = INTERNAL_INPUTS if points else COPY_INTERNAL_INPUTS if copy else STACK_INTERNAL_INPUTS if stack else \
         FRAMES_INTERNAL_INPUTS if frames else OLD_INTERNAL_INPUTS
     for name, stype, default, lo, hi, desc in SETTINGS + internal:
         if name == "Backend" and menu:
@@ -166,14 +182,16 @@ def _build_group(group_layout=GROUP_LAYOUT):
         links.new(info.outputs["Geometry"], true_in)
         links.new(_switch_out(switch), gout.inputs[0])
     else:
-        _frame_switches(group, gin, gout, info, stack, copy)
+        result = _with_points(group, gin, info) if points else info.outputs["Geometry"]
+        _frame_switches(group, gin, gout, result, stack, copy)
     if menu:
         _backend_menu(group, gin)
     return group
 
 
-def _frame_switches(group, gin, gout, info, stack=False, copy=False):
-    """Source, live result or bake by the frame the depsgraph evaluates (module docstring)."""
+def _frame_switches(group, gin, gout, result, stack=False, copy=False):
+    """Source, live result (the geometry socket `result`) or bake by the frame the depsgraph
+    evaluates (module docstring)."""
     nodes, links = group.nodes, group.links
     time = nodes.new('GeometryNodeInputSceneTime')
     time.location = (-650, 300)
@@ -209,7 +227,7 @@ def _frame_switches(group, gin, gout, info, stack=False, copy=False):
         parts.location = (-900, -700)
         links.new(_out(gin, "Geometry"), parts.inputs[0])
     links.new(_input_copy(group, gin, parts) if copy else _out(gin, "Geometry"), false_in)
-    links.new(_with_instances(group, info.outputs["Geometry"], parts, (-150, -250)), true_in)
+    links.new(_with_instances(group, result, parts, (-150, -250)), true_in)
     bake_info = nodes.new('GeometryNodeObjectInfo')
     bake_info.transform_space = 'ORIGINAL'   # baked meshes are in the source's space too
     bake_info.location = (-150, -400)
@@ -221,6 +239,31 @@ def _frame_switches(group, gin, gout, info, stack=False, copy=False):
     links.new(_with_instances(group, bake_info.outputs["Geometry"], parts, (-150, -500)),
               true_in)
     links.new(_switch_out(baked), gout.inputs[0])
+
+
+def _with_points(group, gin, info):
+    """Geometry socket: the result (Object Info `info`) moved to the Result Points' positions
+    where those have as many vertices as the result; else the result as it is (the switch
+    evaluates only the branch it takes: no copy of the result when no points are sent)."""
+    nodes, links = group.nodes, group.links
+    geo = info.outputs["Geometry"]
+    pts = nodes.new('GeometryNodeObjectInfo')
+    pts.transform_space = 'ORIGINAL'   # written in the source object's space, as the result
+    pts.location = (-650, -1000)
+    links.new(_out(gin, "Result Points"), pts.inputs["Object"])
+    pts_geo = pts.outputs["Geometry"]
+    same_count = _compare(group, 'EQUAL', _domain_size(group, pts_geo, (-450, -1100)),
+                          _domain_size(group, geo, (-450, -950)), (-250, -1050), 'INT')
+    move = nodes.new('GeometryNodeSetPosition')
+    move.location = (-250, -1250)
+    links.new(geo, move.inputs["Geometry"])
+    links.new(_sampled_position(group, pts_geo, (-450, -1250)), move.inputs["Position"])
+    switch = _switch(group, (-100, -1050))
+    cond, false_in, true_in = _switch_sockets(switch)
+    links.new(same_count, cond)
+    links.new(geo, false_in)
+    links.new(move.outputs[0], true_in)
+    return _switch_out(switch)
 
 
 def _stack_matches(group, gin):
@@ -243,22 +286,11 @@ def _stack_matches(group, gin):
     cond, _false_in, true_in = _switch_sockets(checked)   # false: an empty geometry
     links.new(has_ref, cond)
     links.new(geo, true_in)
-    sample = nodes.new('GeometryNodeSampleIndex')
-    sample.data_type = 'FLOAT_VECTOR'
-    sample.domain = 'POINT'
-    sample.location = (-550, 700)
-    s_geo = next(s for s in sample.inputs if s.type == 'GEOMETRY')
-    s_val = next(s for s in sample.inputs if s.enabled and s.type == 'VECTOR')
-    s_idx = next(s for s in sample.inputs if s.enabled and s.type == 'INT')
-    links.new(ref_geo, s_geo)
-    links.new(nodes.new('GeometryNodeInputPosition').outputs[0], s_val)
-    links.new(nodes.new('GeometryNodeInputIndex').outputs[0], s_idx)
     dist = nodes.new('ShaderNodeVectorMath')
     dist.operation = 'DISTANCE'
     dist.location = (-350, 700)
     links.new(nodes.new('GeometryNodeInputPosition').outputs[0], dist.inputs[0])
-    links.new(next(s for s in sample.outputs if s.enabled and s.type == 'VECTOR'),
-              dist.inputs[1])
+    links.new(_sampled_position(group, ref_geo, (-550, 700)), dist.inputs[1])
     stat = nodes.new('GeometryNodeAttributeStatistic')
     stat.data_type = 'FLOAT'
     stat.domain = 'POINT'
@@ -271,6 +303,22 @@ def _stack_matches(group, gin):
     same = _boolean(group, 'AND', (same_count, same_place), (250, 700))
     no_ref = _boolean(group, 'NOT', (has_ref,), (250, 850))
     return _boolean(group, 'OR', (no_ref, same), (450, 800))
+
+
+def _sampled_position(group, geometry, location):
+    """Vector field socket: the position of `geometry`'s point with the evaluated element's
+    index (Sample Index)."""
+    nodes, links = group.nodes, group.links
+    sample = nodes.new('GeometryNodeSampleIndex')
+    sample.data_type = 'FLOAT_VECTOR'
+    sample.domain = 'POINT'
+    sample.location = location
+    links.new(geometry, next(s for s in sample.inputs if s.type == 'GEOMETRY'))
+    links.new(nodes.new('GeometryNodeInputPosition').outputs[0],
+              next(s for s in sample.inputs if s.enabled and s.type == 'VECTOR'))
+    links.new(nodes.new('GeometryNodeInputIndex').outputs[0],
+              next(s for s in sample.inputs if s.enabled and s.type == 'INT'))
+    return next(s for s in sample.outputs if s.enabled and s.type == 'VECTOR')
 
 
 def _with_instances(group, geometry, parts, location):
@@ -390,7 +438,7 @@ def migrate(mod):
     """Moves a modifier using an older layout's group (a file from an older add-on or from
     3.4-4.0) to this Blender's group, keeping every setting; returns True when it did. Only
     upgrades: text to menu, no frame ranges to frame ranges, no Stack Object (or no Input
-    Copy) to one."""
+    Copy, or no Result Points) to one."""
     old = mod.node_group
     old_layout = layout(old)
     if not is_smooth_ffd_group(old) or old_layout not in LAYOUTS \
@@ -398,7 +446,8 @@ def migrate(mod):
             or (old_layout in MENU_LAYOUTS and GROUP_LAYOUT not in MENU_LAYOUTS) \
             or (old_layout in FRAMES_LAYOUTS and GROUP_LAYOUT not in FRAMES_LAYOUTS) \
             or (old_layout in STACK_LAYOUTS and GROUP_LAYOUT not in STACK_LAYOUTS) \
-            or (old_layout in COPY_LAYOUTS and GROUP_LAYOUT not in COPY_LAYOUTS):
+            or (old_layout in COPY_LAYOUTS and GROUP_LAYOUT not in COPY_LAYOUTS) \
+            or (old_layout in POINTS_LAYOUTS and GROUP_LAYOUT not in POINTS_LAYOUTS):
         return False
     values = {}
     for name, *_ in INPUTS:

@@ -288,13 +288,8 @@ def stack_object(obj, mod, ro):
 
 def record(so, positions):
     """Writes the input's vertex positions into the stack object's mesh."""
-    from . import compat
-    me = so.data
-    if len(me.vertices) != len(positions):
-        me.clear_geometry()
-        me.vertices.add(len(positions))
-    compat.set_positions(me, positions)
-    me.update()
+    from . import meshio
+    meshio.write_vertices(so.data, positions)
 
 
 def set_stack_object(obj, mod, target):
@@ -314,7 +309,8 @@ def set_stack_object(obj, mod, target):
 
 
 def remove(so):
-    """Deletes a stack object of this file (never a library's, nor an override of one)."""
+    """Deletes a hidden object of vertices only (a stack object, a Result Points object) of
+    this file (never a library's, nor an override of one)."""
     if so.library is not None or getattr(so, "override_library", None) is not None:
         return
     mesh = so.data

@@ -235,6 +235,8 @@ def test_positions_only_path():
     T.check(f"{where}: result normals {'kept' if compat.CHEAP_EXACT_NORMALS else 'None'}",
             ((st.result.normals if meshio.is_compact(st.result) else st.result.corner_normals)
              is not None) == compat.CHEAP_EXACT_NORMALS)
+    check_points(f"{where}, moved again", obj, mod, ro, move(0.05),
+                 compat.POSITIONS_THROUGH_POINTS and not compat.CHEAP_EXACT_NORMALS)
     # 4.5+: exact already, the setting changes nothing (nothing recomputed).
     none = {"normals": 0, "positions_only": 0}
     n = calls(exact_normals(True))
@@ -243,12 +245,16 @@ def test_positions_only_path():
                                                {"normals": 1, "positions_only": 0}), str(n))
     T.check("Exact Normals on: custom normals written", ro.data.has_custom_normals,
             smooth_ffd.status(mod))
+    check_points("Exact Normals on", obj, mod, ro, lambda: None, False)
     n = calls(move(-0.1))
     parity("Exact Normals, lattice move: parity", obj, lat, ref, mod)
     T.check("Exact Normals, lattice move: normals", n == {"normals": 1, "positions_only": 0},
             str(n))
     n = calls(exact_normals(False))
     parity("Exact Normals off: parity", obj, lat, ref, mod)
+    check_points("Exact Normals off, moved", obj, mod, ro, move(0.05),
+                 compat.POSITIONS_THROUGH_POINTS and not compat.CHEAP_EXACT_NORMALS)
+    parity("Exact Normals off, moved: parity", obj, lat, ref, mod)
     T.check("Exact Normals off: back to the viewport path",
             n == (none if compat.CHEAP_EXACT_NORMALS else viewport), str(n))
     # Render (what the render handler and Apply call): normals, in every version.
@@ -260,6 +266,26 @@ def test_positions_only_path():
     n = calls(lambda: smooth_ffd.apply_smooth_ffd(obj, mod))
     T.check("apply: normals", n["normals"] >= 1 and n["positions_only"] == 0, str(n))
     T.check("apply: custom normals on the applied mesh", obj.data.has_custom_normals)
+
+
+def check_points(name, obj, mod, ro, fn, sent):
+    """After fn: whether the update went through the Result Points (`sent`: before 3.6, a
+    positions-only update; nodegroup), what the points object holds, and that the object
+    shows the result mesh's positions either way (bitwise: Set Position copies them)."""
+    fn()
+    po = modifier_update.points_object(obj, mod, ro, create=False)
+    timing = modifier_update.last_timing(obj, mod) or {}
+    T.check(f"{name}: {'through' if sent else 'not through'} the Result Points",
+            timing.get("points") == sent, str(timing.get("points")))
+    count = len(po.data.vertices) if po is not None else 0
+    T.check(f"{name}: points object holds {'the positions' if sent else 'nothing'}",
+            count == (len(ro.data.vertices) if sent else 0), f"{count}")
+    if sent:
+        T.check(f"{name}: points are the result mesh's",
+                np.array_equal(T.positions(po.data), T.positions(ro.data)))
+    shown = T.positions(T.evaluated_mesh(obj))
+    T.check(f"{name}: the object shows the result mesh",
+            np.array_equal(shown, T.positions(ro.data)), f"{len(shown)} vertices")
 
 
 def test_live_editing():
@@ -657,6 +683,8 @@ def test_text_backend_file():
 
 def test_apply_remove():
     obj, lat, ref, mod = scene(level=1)
+    lat.data.points[0].co_deform.x += 0.1   # a live update: before 3.6 the points object too
+    T.update()
     old = obj.data
     old_digest = source_digest(obj)
     render_level = compat.get_modifier_input(mod, "Render Level")
@@ -668,13 +696,20 @@ def test_apply_remove():
     T.check("apply: render-level mesh", n == npatch * render_level ** 2, f"{n} tris")
     T.check("apply: result object deleted",
             not any(o.get(modifier_update.OWNER_KEY) is not None for o in bpy.data.objects))
+    T.check("apply: points object deleted",
+            not any(o.get(modifier_update.POINTS_KEY) is not None for o in bpy.data.objects))
     T.check("apply: old mesh untouched", source_digest_mesh(old) == old_digest)
     # The modifier is freed by Apply: its in-memory plan must go with it.
     T.check("apply: in-memory state dropped", not modifier_update._states,
             str(list(modifier_update._states)))
     obj, lat, ref, mod = scene()
+    lat.data.points[0].co_deform.x += 0.1
+    T.update()
     smooth_ffd.remove_smooth_ffd(obj, mod)
     T.update()
+    T.check("remove: hidden objects deleted", not any(
+        o.get(k) is not None for o in bpy.data.objects
+        for k in (modifier_update.OWNER_KEY, modifier_update.POINTS_KEY)))
     got = T.positions(T.evaluated_mesh(obj))
     T.check("remove: shows the source", np.array_equal(got, T.positions(obj.data)))
 

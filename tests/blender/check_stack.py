@@ -592,11 +592,17 @@ def test_lock_interface():
 
 
 def test_migrate_layouts():
-    """A group of 3.4-4.0 with frame ranges and no Stack Object (layout 3, older add-ons)
-    moves to this Blender's group (5 on 3.4-4.0, 6 with the Backend menu on 4.1+), keeping
-    the frame ranges and the bake."""
+    """Groups of 3.4-4.0 from older add-ons, with frame ranges and no Stack Object (layout
+    3) or with the Input Copy and no Result Points (layout 7), move to this Blender's group
+    (9 on 3.4-4.0, 10 with the Backend menu on 4.1+), keeping the frame ranges and the bake;
+    the next lattice edit then goes through the Result Points where this Blender sends them
+    (before 3.6)."""
+    for old_layout in (nodegroup.TEXT_FRAMES_LAYOUT, nodegroup.TEXT_COPY_LAYOUT):
+        _migrate_layout(old_layout)
+
+
+def _migrate_layout(old_layout):
     obj, lat, mod = scene_setup("cube", animate=False)
-    old_layout = nodegroup.TEXT_FRAMES_LAYOUT
     old = nodegroup._build_group(old_layout)
     old_name = old.name
     ro = modifier_update.result_object(obj, mod, create=False)
@@ -618,7 +624,14 @@ def test_migrate_layouts():
             kept == want and old_name not in bpy.data.node_groups, str(kept))
     obj.update_tag()
     T.update()
-    T.check("migrated: live", status(mod).startswith("OK cpu"), status(mod))
+    T.check(f"migrated from {old_layout}: live", status(mod).startswith("OK cpu"), status(mod))
+    lat.data.points[1].co_deform.z += 0.1
+    T.update()
+    sent = (modifier_update.last_timing(obj, mod) or {}).get("points")
+    T.check(f"migrated from {old_layout}: lattice edit "
+            f"{'through' if compat.POSITIONS_THROUGH_POINTS else 'not through'} the Result Points",
+            status(mod).startswith("OK cpu") and sent == compat.POSITIONS_THROUGH_POINTS,
+            f"{sent}, {status(mod)}")
 
 
 def _fill(me, snap):

@@ -21,7 +21,8 @@ first and last in depsgraph_update_pre/post: "pre" (Smooth FFD's work in
 depsgraph_update_pre), "eval1" (Blender's evaluation before depsgraph_update_post), "post"
 (Smooth FFD's work in depsgraph_update_post) and "eval2" (the second evaluation Blender runs
 when a post handler tagged something, plus reading the mesh); inside the Smooth FFD work:
-deform (core), mesh write, normals.
+deform (core), mesh write, normals. "Blender alone (nothing new)": the object re-evaluated
+with nothing changed and the add-on muted, the least any update can cost here.
 """
 import os
 import sys
@@ -267,6 +268,21 @@ def time_edit(lat, obj, repeats, mod=None, early_modes=(True,), moves=("one",)):
     return out
 
 
+def time_reevaluation(obj, repeats):
+    """Median ms of Blender re-evaluating obj with nothing new (the object tagged, the add-on's
+    handlers muted): what showing any update costs at least, the copy its modifier makes of
+    the result included."""
+    times = []
+    with handlers.muted():
+        for _ in range(repeats):
+            obj.update_tag()
+            t = time.perf_counter()
+            bpy.context.view_layer.update()
+            len(obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data.vertices)
+            times.append(1e3 * (time.perf_counter() - t))
+    return float(np.median(times))
+
+
 def _phase_text(split):
     return (f"pre {split['pre']:.0f} + eval1 {split['eval1']:.0f} + post {split['post']:.0f}"
             f" + eval2 {split['eval2']:.0f}")
@@ -380,11 +396,13 @@ def sffd_rows(workload, mesh, lat, levels, moves=("one",)):
             timed = time_edit(lat, obj, REPEATS, mod, moves=moves)
             modifier_update.LIVE = None
             tris = evaluated_tris(obj)
+            floor = time_reevaluation(obj, REPEATS)
             for move in moves:
                 ms, sp = timed[True, move]
                 detail = (f"core deform {sp['core_ms']:.1f} / mesh write {sp['mesh_write_ms']:.1f}"
                           f" / normals {sp['normals_ms']:.1f} [{sp['normals_path']}]; "
-                          f"{_phase_text(sp)}; first update (plan) {first:.0f}")
+                          f"{_phase_text(sp)}; Blender alone (nothing new) {floor:.1f}; "
+                          f"first update (plan) {first:.0f}")
                 rows.append(dict(workload=workload, tris_in=mesh_triangles(mesh),
                                  name=f"Smooth FFD level {level}" + (" live" if live else ""),
                                  kind="sffd", level=level, move=move, tris=tris, ms=ms,

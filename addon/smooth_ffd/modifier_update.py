@@ -42,6 +42,7 @@ class _State:
         self.lattice_gone = None  # a deleted lattice's name (handlers.release_deleted_lattices)
         self.exact_key = None     # the inputs' key (with exact normals) of the last result
         self.changed_at = -1e9    # when a result for new inputs was last computed (live editing)
+        self.lattice = (None, None)  # (_lattice's key, the BlenderLattice last built for it)
 
 
 _states = {}
@@ -166,6 +167,21 @@ def _empty_points(obj, mod, ro):
         po.data.clear_geometry()
         po.data.update()
     _set_points(obj, mod, po)
+
+
+def _lattice(st, rest, pts, interp, l2o, strength, weights):
+    """The BlenderLattice of these inputs. Where only the points (and the weights' values)
+    changed since the last one (a point dragged, an animation), that one's with_points: the
+    same values without building and checking the structure again on every update."""
+    key = (np.asarray(rest).tobytes(), tuple(interp), np.asarray(l2o).tobytes(), strength,
+           weights is None)
+    if st.lattice[0] == key:
+        return st.lattice[1].with_points(pts, weights)
+    lattice = core.smoothffd().BlenderLattice(rest, pts, interpolation=interp,
+                                              lattice_to_object=l2o, strength=strength,
+                                              point_weights=weights)
+    st.lattice = (key, lattice)
+    return lattice
 
 
 def _owned_by(ro, obj, mod):
@@ -377,9 +393,7 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
         t0 = time.perf_counter()
         # weights: the lattice's vertex group; a per-frame value like the points (adding or
         # removing it changes the lattice's structure key, so that replans).
-        lattice = core.smoothffd().BlenderLattice(rest, pts, interpolation=interp,
-                                                  lattice_to_object=l2o, strength=settings.strength,
-                                                  point_weights=weights)
+        lattice = _lattice(st, rest, pts, interp, l2o, settings.strength, weights)
         plan_key = (source.key, lattice.structure_key(), level, backend)
         if st.deformer is None or st.plan_key != plan_key:
             st.deformer = st.result = None

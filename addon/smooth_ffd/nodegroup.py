@@ -175,12 +175,8 @@ def _build_group(group_layout=GROUP_LAYOUT):
     links.new(_out(gin, "Result Object"), info.inputs["Object"])
     gin.location, info.location, gout.location = (-900, 0), (-150, -150), (500, 0)
     if not frames:
-        switch = _switch(group, (100, 0))
-        cond, false_in, true_in = _switch_sockets(switch)
-        links.new(_out(gin, "Show Result"), cond)
-        links.new(_out(gin, "Geometry"), false_in)
-        links.new(info.outputs["Geometry"], true_in)
-        links.new(_switch_out(switch), gout.inputs[0])
+        links.new(_switched(group, _out(gin, "Show Result"), _out(gin, "Geometry"),
+                            info.outputs["Geometry"], (100, 0)), gout.inputs[0])
     else:
         result = _with_points(group, gin, info) if points else info.outputs["Geometry"]
         _frame_switches(group, gin, gout, result, stack, copy)
@@ -215,9 +211,6 @@ def _frame_switches(group, gin, gout, result, stack=False, copy=False):
         warn.inputs["Message"].default_value = STALE_MESSAGE
         not_stale = _boolean(group, 'NOT', (warn.outputs["Show"],), (200, 450))
         show_live = _boolean(group, 'AND', (in_result, not_stale), (350, 450))
-    live = _switch(group, (100, 0))
-    cond, false_in, true_in = _switch_sockets(live)
-    links.new(show_live, cond)
     parts = None
     if copy:
         # The input's parts other than its mesh (instances: an input copy of a Smooth FFD
@@ -226,19 +219,17 @@ def _frame_switches(group, gin, gout, result, stack=False, copy=False):
         parts = nodes.new('GeometryNodeSeparateComponents')
         parts.location = (-900, -700)
         links.new(_out(gin, "Geometry"), parts.inputs[0])
-    links.new(_input_copy(group, gin, parts) if copy else _out(gin, "Geometry"), false_in)
-    links.new(_with_instances(group, result, parts, (-150, -250)), true_in)
+    live = _switched(group, show_live,
+                     _input_copy(group, gin, parts) if copy else _out(gin, "Geometry"),
+                     _with_instances(group, result, parts, (-150, -250)), (100, 0))
     bake_info = nodes.new('GeometryNodeObjectInfo')
     bake_info.transform_space = 'ORIGINAL'   # baked meshes are in the source's space too
     bake_info.location = (-150, -400)
     links.new(_out(gin, "Bake Object"), bake_info.inputs["Object"])
-    baked = _switch(group, (300, 0))
-    cond, false_in, true_in = _switch_sockets(baked)
-    links.new(in_bake, cond)
-    links.new(_switch_out(live), false_in)
-    links.new(_with_instances(group, bake_info.outputs["Geometry"], parts, (-150, -500)),
-              true_in)
-    links.new(_switch_out(baked), gout.inputs[0])
+    baked = _switched(group, in_bake, live,
+                      _with_instances(group, bake_info.outputs["Geometry"], parts, (-150, -500)),
+                      (300, 0))
+    links.new(baked, gout.inputs[0])
 
 
 def _with_points(group, gin, info):
@@ -258,12 +249,7 @@ def _with_points(group, gin, info):
     move.location = (-250, -1250)
     links.new(geo, move.inputs["Geometry"])
     links.new(_sampled_position(group, pts_geo, (-450, -1250)), move.inputs["Position"])
-    switch = _switch(group, (-100, -1050))
-    cond, false_in, true_in = _switch_sockets(switch)
-    links.new(same_count, cond)
-    links.new(geo, false_in)
-    links.new(move.outputs[0], true_in)
-    return _switch_out(switch)
+    return _switched(group, same_count, geo, move.outputs[0], (-100, -1050))
 
 
 def _stack_matches(group, gin):
@@ -355,12 +341,7 @@ def _input_copy(group, gin, parts):
     links.new(geo, join.inputs[0])
     links.new(move.outputs[0], join.inputs[0])
     on = _compare(group, 'GREATER_THAN', _out(gin, "Input Copy"), 0, (-500, -550), 'INT')
-    switch = _switch(group, (-100, -600))
-    cond, false_in, true_in = _switch_sockets(switch)
-    links.new(on, cond)
-    links.new(geo, false_in)
-    links.new(join.outputs[0], true_in)
-    return _switch_out(switch)
+    return _switched(group, on, geo, join.outputs[0], (-100, -600))
 
 
 def _domain_size(group, geometry, location):
@@ -407,6 +388,17 @@ def _switch(group, location):
     switch.input_type = 'GEOMETRY'
     switch.location = location
     return switch
+
+
+def _switched(group, condition, if_false, if_true, location):
+    """Geometry socket: if_true where the boolean socket condition is true, else if_false
+    (a Switch node: it evaluates only the side it takes)."""
+    switch = _switch(group, location)
+    cond, false_in, true_in = _switch_sockets(switch)
+    group.links.new(condition, cond)
+    group.links.new(if_false, false_in)
+    group.links.new(if_true, true_in)
+    return _switch_out(switch)
 
 
 def _switch_out(switch):

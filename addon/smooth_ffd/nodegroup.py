@@ -19,8 +19,8 @@ Layouts (the group's GROUP_TAG value): 1, Backend a text input (Blender 3.4-4.0)
 menu (4.1+: a menu socket feeding a Menu Switch node, which defines the items); 3 and 4, the
 same with the frame ranges and the bake (Show Result folded into the result's frame range);
 5 and 6, the same with the Stack Object and its input check; 7 and 8, the same with the Input
-Copy; 9 and 10, the same with the Result Points. Files made with an older layout are moved to this Blender's when opened (migrate),
-keeping every setting.
+Copy; 9 and 10, the same with the Result Points. Files made with an older layout are moved
+to this Blender's when opened (migrate), keeping every setting.
 
 Input Copy (an int k, 0: off): where other modifiers follow it, the evaluated object shows
 their output, not this modifier's input. While k > 0, the group's passed-through geometry
@@ -37,7 +37,7 @@ Index by index, Set Position); else (no object, or emptied) the result is shown 
 Blender before 3.6 (no implicit sharing: every change to the result mesh copies all of it
 again, its topology, UV maps and attributes, in the depsgraph) the add-on sends
 positions-only updates (live editing without exact normals) through it and leaves the result
-mesh's topology untouched (modifier_update.write_points); every other write empties it.
+mesh's topology untouched (modifier_update._write_result); every other write empties it.
 """
 import bpy
 
@@ -151,8 +151,9 @@ def _build_group(group_layout=GROUP_LAYOUT):
     copy = group_layout in COPY_LAYOUTS
     points = group_layout in POINTS_LAYOUTS
     compat.new_group_socket(group, 'INPUT', 'NodeSocketGeometry', "Geometry")
-    internal = INTERNAL_INPUTS if points else COPY_INTERNAL_INPUTS if copy else STACK_INTERNAL_INPUTS if stack else \
-        FRAMES_INTERNAL_INPUTS if frames else OLD_INTERNAL_INPUTS
+    internal = INTERNAL_INPUTS if points else COPY_INTERNAL_INPUTS if copy else \
+        STACK_INTERNAL_INPUTS if stack else FRAMES_INTERNAL_INPUTS if frames else \
+        OLD_INTERNAL_INPUTS
     for name, stype, default, lo, hi, desc in SETTINGS + internal:
         if name == "Backend" and menu:
             stype, default, desc = 'NodeSocketMenu', None, "Auto (CUDA when usable), CPU or CUDA"

@@ -113,8 +113,9 @@ void check_values(const Plan& plan, const Arr<float>& D) {
                                 ") array matching the plan");
 }
 
+// incremental: CpuEvaluator::update instead of the whole frame (the CPU evaluator only).
 py::tuple run_evaluator(Evaluator& ev, const Arr<float>& D, const py::object& out_positions,
-                        const py::object& out_normals) {
+                        const py::object& out_normals, bool incremental = false) {
   const Plan& plan = ev.plan();
   check_values(plan, D);
   py::array_t<float> pos = output_array(out_positions, {(py::ssize_t)plan.output_vertices, 3}, "positions");
@@ -122,7 +123,9 @@ py::tuple run_evaluator(Evaluator& ev, const Arr<float>& D, const py::object& ou
   const float* d = D.data();
   float* p = pos.mutable_data();
   float* n = nrm.mutable_data();
-  StageTimes t = interruptible([&] { return ev.evaluate(d, p, n); });
+  StageTimes t = interruptible([&] {
+    return incremental ? dynamic_cast<CpuEvaluator&>(ev).update(d, p, n, nullptr) : ev.evaluate(d, p, n);
+  });
   return py::make_tuple(pos, nrm, times_dict(t));
 }
 
@@ -188,7 +191,8 @@ py::array_t<float> pinned_array(const std::vector<py::ssize_t>& shape) {
 // normals=False: positions only (the out normals are neither needed nor touched). pinned: new
 // arrays in page-locked memory (the CUDA evaluator).
 py::tuple run_compact(Evaluator& ev, const Arr<float>& D, const py::object& out_positions,
-                      const py::object& out_normals, bool normals, bool pinned = false) {
+                      const py::object& out_normals, bool normals, bool pinned = false,
+                      bool incremental = false) {
   const Plan& plan = ev.plan();
   check_values(plan, D);
   auto out = [&](const py::object& given, py::ssize_t rows, const char* name) {
@@ -205,7 +209,9 @@ py::tuple run_compact(Evaluator& ev, const Arr<float>& D, const py::object& out_
   }
   const float* d = D.data();
   float* p = pos.mutable_data();
-  StageTimes t = interruptible([&] { return ev.evaluate_compact(d, p, n); });
+  StageTimes t = interruptible([&] {
+    return incremental ? dynamic_cast<CpuEvaluator&>(ev).update(d, p, nullptr, n) : ev.evaluate_compact(d, p, n);
+  });
   return py::make_tuple(pos, nrm_obj, times_dict(t));
 }
 
@@ -223,6 +229,12 @@ py::tuple run_positions(Ev& ev, const Arr<float>& D, const py::object& out_posit
 }
 
 }  // namespace
+
+const char* const kIncrementalDoc =
+    "incremental=True: recompute only what reads a control point whose values differ from the "
+    "previous frame's (CpuEvaluator::update); the output arrays passed must be the previous "
+    "frame's, of the same kind, untouched since: the rest of them is kept. Otherwise (another "
+    "kind or other arrays before, or none) a whole frame. Bitwise the whole frame's output.";
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "smoothffd native core: lattice bases, plan building, CPU and CUDA evaluators";
@@ -432,27 +444,41 @@ PYBIND11_MODULE(_core, m) {
       .def_property_readonly("isa", &CpuEvaluator::isa,
                              "per-frame code path: 'x86-64-v2' (baseline) or 'x86-64-v3' (AVX2 + FMA)")
       .def("evaluate",
-           [](CpuEvaluator& ev, Arr<float> D, py::object positions, py::object corner_normals) {
-             return run_evaluator(ev, D, positions, corner_normals);
+           [](CpuEvaluator& ev, Arr<float> D, py::object positions, py::object corner_normals, bool incremental) {
+             return run_evaluator(ev, D, positions, corner_normals, incremental);
            },
-           py::arg("values"), py::arg("positions") = py::none(), py::arg("corner_normals") = py::none())
+           py::arg("values"), py::arg("positions") = py::none(), py::arg("corner_normals") = py::none(),
+           py::kw_only(), py::arg("incremental") = false, kIncrementalDoc)
       .def("evaluate_compact",
-           [](CpuEvaluator& ev, Arr<float> D, py::object positions, py::object normals, bool with_normals) {
-             return run_compact(ev, D, positions, normals, with_normals);
+           [](CpuEvaluator& ev, Arr<float> D, py::object positions, py::object normals, bool with_normals,
+              bool incremental) {
+             return run_compact(ev, D, positions, normals, with_normals, false, incremental);
            },
            py::arg("values"), py::arg("positions") = py::none(), py::arg("normals") = py::none(),
-           py::arg("with_normals") = true,
+           py::arg("with_normals") = true, py::kw_only(), py::arg("incremental") = false,
            "(positions (N, 3), render-vertex normals (R, 3) or None, stage times): the compact "
-           "layout (Plan.render_vertices() for its topology)")
+           "layout (Plan.render_vertices() for its topology). incremental: as evaluate's")
       .def("evaluate_positions",
-           [](CpuEvaluator& ev, Arr<float> D, py::object positions) {
+           [](CpuEvaluator& ev, Arr<float> D, py::object positions, bool incremental) {
              return run_positions(ev, D, positions, [&](const float* d, float* p) {
-               return ev.evaluate_positions(d, p);
+               return incremental ? ev.update(d, p, nullptr, nullptr) : ev.evaluate_positions(d, p);
              });
            },
-           py::arg("values"), py::arg("positions") = py::none(),
+           py::arg("values"), py::arg("positions") = py::none(), py::kw_only(), py::arg("incremental") = false,
            "(positions (N, 3), stage times): evaluate's positions, bitwise, without the normals "
-           "(Jacobians only at the sub-vertices, no normal patches)");
+           "(Jacobians only at the sub-vertices, no normal patches). incremental: as evaluate's")
+      .def_property_readonly(
+          "last_frame",
+          [](const CpuEvaluator& ev) {
+            const CpuEvaluator::FrameCounts c = ev.last_frame();
+            py::dict d;
+            d["changed_points"] = c.changed_points;
+            d["patches"] = c.patches;
+            return d;
+          },
+          "what the last frame recomputed: {'changed_points', 'patches'} (all of either: a whole frame)")
+      .def_property_readonly("update_bytes", &CpuEvaluator::update_bytes,
+                             "host memory of the incremental frames' tables (0 before the first)");
 
   // Whether the CUDA backend (libsmoothffd_cuda.so) is next to the module: loads nothing.
   m.attr("cuda_compiled") = cuda_library_present();

@@ -251,3 +251,92 @@ TEST(CpuEvaluator, CentreRowsOnlyWhereTheCentreIsLinear) {
   ASSERT_EQ(a.pos.size(), b.pos.size());
   for (size_t i = 0; i < a.pos.size(); ++i) ASSERT_NEAR(a.pos[i], b.pos[i], 1e-6f);
 }
+
+TEST(CpuEvaluator, UpdateMatchesWholeFramesBitwise) {
+  // update (incremental frames, eval/cpu_update.hpp) against a fresh evaluator's whole frame
+  // for the same control values, bit for bit, in each kind (corner normals, compact, positions
+  // only), over a run of frames that move one point, a few, none, or all of them. An element
+  // whose block missed a control point it reads keeps a stale value and changes bits.
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<float> U(-0.3f, 0.3f);
+  int cases = 0, partial = 0;
+  auto check = [&](const InputMesh& m, const LatticeSpec& s, int level) {
+    auto plan = plan_of(m, s, level);
+    const int C = s.components;
+    const size_t points = (size_t)s.count();
+    std::vector<float> D(C * points);
+    for (size_t i = 0; i < D.size(); ++i) D[i] = C == 4 && i % 4 == 3 ? 1.0f : U(rng);
+    const size_t N = 3 * (size_t)plan->output_vertices;
+    for (int kind = 0; kind < 3; ++kind) {
+      CpuEvaluator inc(plan);
+      const size_t nn = kind == 0 ? 9 * (size_t)plan->output_triangles : kind == 1 ? 3 * (size_t)plan->render_vertices : 0;
+      std::vector<float> pos(N), nrm(nn), want_pos(N), want_nrm(nn);
+      auto frame = [&](CpuEvaluator& ev, bool update, float* p, float* n) {
+        float* corner = kind == 0 ? n : nullptr;
+        float* render = kind == 1 ? n : nullptr;
+        if (update) return ev.update(D.data(), p, corner, render);
+        if (kind == 0) return ev.evaluate(D.data(), p, corner);
+        if (kind == 1) return ev.evaluate_compact(D.data(), p, render);
+        return ev.evaluate_positions(D.data(), p);
+      };
+      for (int step = 0; step < 8; ++step) {
+        // step 0: the first frame (whole); 1-4: one random point; 5: three; 6: none; 7: all
+        std::uniform_int_distribution<size_t> pick(0, points - 1);
+        const int moves = step == 0 ? 0 : step <= 4 ? 1 : step == 5 ? 3 : step == 6 ? 0 : (int)points;
+        for (int i = 0; i < moves; ++i) {
+          const size_t q = step == 7 ? (size_t)i : pick(rng);
+          D[C * q + rng() % 3] += U(rng);
+          if (C == 4 && step == 5) D[C * q + 3] = 0.5f + 0.5f * (U(rng) + 0.3f);  // a weight too
+        }
+        frame(inc, true, pos.data(), nrm.data());
+        CpuEvaluator whole(plan);
+        frame(whole, false, want_pos.data(), want_nrm.data());
+        ASSERT_EQ(0, std::memcmp(pos.data(), want_pos.data(), 4 * N)) << "case " << cases << " kind " << kind << " step " << step;
+        ASSERT_EQ(0, std::memcmp(nrm.data(), want_nrm.data(), 4 * nn)) << "case " << cases << " kind " << kind << " step " << step;
+        const CpuEvaluator::FrameCounts c = inc.last_frame();
+        if (step == 0 || step == 7) EXPECT_EQ(c.patches, plan->patches);
+        if (step == 6) {
+          EXPECT_EQ(c.changed_points, 0);
+          EXPECT_EQ(c.patches, 0);
+        }
+        if (step >= 1 && step <= 4) EXPECT_EQ(c.changed_points, 1);
+        partial += step >= 1 && step <= 4 && c.patches < plan->patches;
+      }
+    }
+    ++cases;
+  };
+  for (int p = 1; p <= 3; ++p) check(octahedron(0.47, 0.52, 0.55, 0.4), bspline_box(p, p + 4), 3);
+  for (int type = 0; type < 4; ++type) check(cube_quads(), blender_box(BlenderInterp(type), 6), 2);
+  LatticeSpec weighted = blender_box(BlenderInterp::BSpline, 5);
+  weighted.components = 4;
+  check(flat_grid(6), weighted, 2);
+  for (int trial = 0; trial < 30; ++trial) check(random_mesh(rng), random_lattice(rng), 1 + trial % 4);
+  EXPECT_GT(partial, 50);  // most single-point frames recompute part of the mesh only
+}
+
+TEST(CpuEvaluator, UpdateRunsAWholeFrameWhereItCannotContinue) {
+  // Another kind, other arrays, or no frame before: a whole frame, right output.
+  auto plan = plan_of(cube_quads(), blender_box(BlenderInterp::BSpline, 6), 2);
+  std::vector<float> D(3 * 216, 0.0f);
+  std::vector<float> pos(3 * (size_t)plan->output_vertices), other(pos.size()), nrm(3 * (size_t)plan->render_vertices);
+  CpuEvaluator ev(plan);
+  ev.update(D.data(), pos.data(), nullptr, nullptr);
+  EXPECT_EQ(ev.last_frame().patches, plan->patches);  // none before
+  D[0] = 0.1f;
+  ev.update(D.data(), pos.data(), nullptr, nullptr);
+  EXPECT_LT(ev.last_frame().patches, plan->patches);
+  EXPECT_EQ(ev.last_frame().changed_points, 1);
+  D[1] = 0.1f;
+  ev.update(D.data(), other.data(), nullptr, nullptr);  // other arrays
+  EXPECT_EQ(ev.last_frame().patches, plan->patches);
+  ev.update(D.data(), other.data(), nullptr, nrm.data());  // another kind
+  EXPECT_EQ(ev.last_frame().patches, plan->patches);
+  std::vector<float> corner(9 * (size_t)plan->output_triangles);
+  EXPECT_THROW(ev.update(D.data(), pos.data(), corner.data(), nrm.data()), std::invalid_argument);
+  D[2] = 0.1f;
+  ev.update(D.data(), other.data(), nullptr, nrm.data());  // the failed call changed nothing
+  EXPECT_LT(ev.last_frame().patches, plan->patches);
+  CpuOut want = run_cpu(plan, D);
+  EXPECT_EQ(0, std::memcmp(want.pos.data(), other.data(), 4 * other.size()));
+  EXPECT_GT(ev.update_bytes(), 0u);
+}

@@ -56,6 +56,33 @@ SampleBatches positions_only_batches(const Plan& p) {
   return make_sample_batches(p, &ids);
 }
 
+// fn(b, e) on ranges covering the elements of [0, n) (runs null), or only those of runs
+// (an incremental frame), the threads sharing the elements evenly either way.
+template <class Fn>
+void for_elements(long long n, const ChangedRuns* runs, int threads, Fn&& fn) {
+  if (!runs) {
+    parallel_for(n, threads, fn);
+    return;
+  }
+  parallel_for(runs->count(), threads, [&](long long b, long long e) {
+    size_t r = std::upper_bound(runs->before.begin(), runs->before.end(), b) - runs->before.begin() - 1;
+    for (; b < e; ++r) {
+      const long long off = b - runs->before[r];
+      const long long len = std::min(runs->end[r] - runs->begin[r] - off, e - b);
+      fn(runs->begin[r] + off, runs->begin[r] + off + len);
+      b += len;
+    }
+  });
+}
+
+// Per-thread scratch of at least n floats (the loops' tessellation grids and centre blocks):
+// the pool's threads keep theirs, so a frame of many short ranges allocates nothing.
+float* scratch(size_t n) {
+  thread_local std::vector<float> s;
+  if (s.size() < n) s.resize(n);
+  return s.data();
+}
+
 }  // namespace
 
 std::string cpu_isa() { return best_kernels()->isa; }
@@ -91,28 +118,33 @@ CpuEvaluator::CpuEvaluator(std::shared_ptr<const Plan> plan, int threads, const 
 
 // Stage 4a: the sub-vertices' positions are their samples (exact images of the input and clip
 // vertices); every other output vertex is tessellated by the patch that owns it.
-void CpuEvaluator::tessellate_positions(const PlanView& pv, const FrameView& fv) {
+void CpuEvaluator::tessellate_positions(const PlanView& pv, const FrameView& fv, const ChangedRuns* runs) {
   parallel_for(pv.sub_vertices, threads_, [&](long long b, long long e) {
     std::memcpy(fv.positions + 3 * b, fv.sample_value + 3 * b, 12 * (size_t)(e - b));
   });
-  parallel_for(pv.patches, threads_, [&](long long b, long long e) {
-    std::vector<float> points(3 * (size_t)grid_lanes_.padded);
-    kernels_->tessellate_positions(pv, fv, grid_lanes_, output_owned_, b, e, points.data());
+  for_elements(pv.patches, runs, threads_, [&](long long b, long long e) {
+    kernels_->tessellate_positions(pv, fv, grid_lanes_, output_owned_, b, e, scratch(3 * (size_t)grid_lanes_.padded));
   });
 }
 
 std::string CpuEvaluator::isa() const { return kernels_->isa; }
 
 StageTimes CpuEvaluator::evaluate(const float* D, float* positions, float* corner_normals) {
-  return run(D, positions, corner_normals, nullptr);
+  return run(D, positions, corner_normals, nullptr, false);
 }
 
 StageTimes CpuEvaluator::evaluate_compact(const float* D, float* positions, float* render_normals) {
-  return run(D, positions, nullptr, render_normals);
+  return run(D, positions, nullptr, render_normals, false);
 }
 
 StageTimes CpuEvaluator::evaluate_positions(const float* D, float* positions) {
-  return run(D, positions, nullptr, nullptr);
+  return run(D, positions, nullptr, nullptr, false);
+}
+
+StageTimes CpuEvaluator::update(const float* D, float* positions, float* corner_normals, float* render_normals) {
+  if (corner_normals && render_normals)
+    throw std::invalid_argument("CpuEvaluator::update: corner_normals or render_normals, not both");
+  return run(D, positions, corner_normals, render_normals, true);
 }
 
 // The whole frame; the normals tessellated per triangle corner (corner_normals), once per
@@ -123,10 +155,12 @@ StageTimes CpuEvaluator::evaluate_positions(const float* D, float* positions) {
 // values (test_cpu_lanes.cpp), and with centre rows both frames make the geometry patches
 // with the same code, so the positions are bitwise the same
 // (PositionsOnlyMatchesEvaluateBitwise, test_cpu_evaluator.cpp).
-StageTimes CpuEvaluator::run(const float* D, float* positions, float* corner_normals, float* render_normals) {
+StageTimes CpuEvaluator::run(const float* D, float* positions, float* corner_normals, float* render_normals,
+                             bool update) {
   using Clock = std::chrono::steady_clock;
   const bool normals = corner_normals || render_normals;
-  const PlanView pv = host_view(*plan_);
+  const Plan& plan = *plan_;
+  const PlanView pv = host_view(plan);
   FrameView fv{sample_value_.data(), sample_jacobian_.data(), edge_control_.data(),
                patch_control_.data(), normals ? patch_normal_.data() : nullptr, positions, corner_normals};
   StageTimes times;
@@ -136,6 +170,37 @@ StageTimes CpuEvaluator::run(const float* D, float* positions, float* corner_nor
     times.emplace_back(name, std::chrono::duration<double, std::milli>(t1 - t0).count());
     t0 = t1;
   };
+  // An incremental frame (update) continues the previous one: same kind, same arrays. The
+  // state is cleared first, so that a frame that throws (Cancelled) leaves none to continue.
+  const Kind kind = render_normals ? Kind::compact : corner_normals ? Kind::corners : Kind::positions;
+  const float* out_normals = corner_normals ? corner_normals : render_normals;
+  const long long points = (long long)plan.dims[0] * plan.dims[1] * plan.dims[2];
+  bool incremental = update && last_kind_ == kind && last_out_[0] == positions && last_out_[1] == out_normals;
+  last_kind_ = Kind::none;
+  last_counts_ = {points, plan.patches};
+  if (incremental) {
+    last_counts_.changed_points = changed_.compare(plan.dims, plan.components, D, last_D_.data());
+    incremental = last_counts_.changed_points < points;  // all moved: a whole frame, no tests
+  }
+  const bool rows = pv.centre_row != nullptr;
+  const SampleBatches& sb = rows && !normals ? positions_batches_ : batches_;
+  // Per stage, the elements this frame runs: null, all of them; else the runs that read a
+  // changed point (none when nothing changed: the output is already this frame's).
+  const ChangedRuns *samples = nullptr, *ends = nullptr, *edges = nullptr, *patches = nullptr;
+  if (incremental) {
+    if (!reach_)
+      reach_ = std::make_unique<UpdateReach>(
+          make_update_reach(plan, batches_, positions_batches_, end_normals_, threads_));
+    hit_.resize(reach_->blocks.size());
+    for (size_t i = 0; i < hit_.size(); ++i) hit_[i] = changed_.any_in(reach_->blocks[i]);
+    sample_runs_.collect(&sb == &batches_ ? reach_->batches : reach_->positions_batches, hit_, threads_);
+    end_runs_.collect(reach_->end_normals, hit_, threads_);
+    edge_runs_.collect(reach_->edges, hit_, threads_);
+    patch_runs_.collect(reach_->patches, hit_, threads_);
+    samples = &sample_runs_, ends = &end_runs_, edges = &edge_runs_, patches = &patch_runs_;
+    last_counts_.patches = patch_runs_.count();
+    lap("changes");
+  }
   // Without normals the geometry reads Jacobians at the edge ends only (adjust_edge), i.e. at
   // the sub-vertex samples, numbered [0, sub_vertices) (plan.cpp): a batch holding one of them
   // runs with Jacobians, every other batch values only. Batches keep plan order within a
@@ -145,44 +210,46 @@ StageTimes CpuEvaluator::run(const float* D, float* positions, float* corner_nor
   // edge-constraint samples only and no fitting: positions only, the other samples are not
   // evaluated (positions_batches_); with normals the fit makes the normal patches alone.
   const int jacobian_below = normals ? INT_MAX : pv.sub_vertices;
-  const bool rows = pv.centre_row != nullptr;
-  const SampleBatches& sb = rows && !normals ? positions_batches_ : batches_;
   const CpuFrameKernels& k = *kernels_;
-  parallel_for(sb.count(), threads_, [&](long long b, long long e) {
+  for_elements(sb.count(), samples, threads_, [&](long long b, long long e) {
     k.sample(pv, D, sb, b, e, fv.sample_value, fv.sample_jacobian, jacobian_below);
   });
   lap("sampling");
-  parallel_for(end_normals_.count(), threads_, [&](long long b, long long e) {
+  for_elements(end_normals_.count(), ends, threads_, [&](long long b, long long e) {
     k.end_normals(fv, end_normals_, b, e, end_normal_.data());
   });
-  parallel_for(pv.edges, threads_, [&](long long b, long long e) {
+  for_elements(pv.edges, edges, threads_, [&](long long b, long long e) {
     k.adjust_edges(pv, fv, end_normals_, end_normal_.data(), b, e);
   });
   lap("edge_adjustment");
   if (normals || !rows) {
     FrameView fit = fv;
     if (rows) fit.patch_control = nullptr;
-    parallel_for(pv.patches, threads_, [&](long long b, long long e) {
+    for_elements(pv.patches, patches, threads_, [&](long long b, long long e) {
       k.fit_patches(pv, fit, fit_columns_, b, e);  // geometry only when fit.patch_normal is null
     });
   }
   if (rows)
-    parallel_for(pv.patches, threads_, [&](long long b, long long e) {
-      std::vector<float> block(3 * (size_t)centre_widest_);
-      k.row_patches(pv, fv, D, b, e, block.data());
+    for_elements(pv.patches, patches, threads_, [&](long long b, long long e) {
+      k.row_patches(pv, fv, D, b, e, scratch(3 * (size_t)centre_widest_));
     });
   lap("fitting");
-  tessellate_positions(pv, fv);
+  tessellate_positions(pv, fv, patches);
   lap("tessellate_positions");
-  if (!normals) return times;
-  parallel_for(pv.patches, threads_, [&](long long b, long long e) {
-    std::vector<float> scratch(3 * (size_t)grid_lanes_.padded);
-    if (render_normals)
-      k.tessellate_render_normals(pv, fv, grid_lanes_, render_owned_, b, e, scratch.data(), render_normals);
-    else
-      k.tessellate_normals(pv, fv, grid_lanes_, b, e, scratch.data());
-  });
-  lap("tessellate_normals");
+  if (normals) {
+    for_elements(pv.patches, patches, threads_, [&](long long b, long long e) {
+      float* grid = scratch(3 * (size_t)grid_lanes_.padded);
+      if (render_normals)
+        k.tessellate_render_normals(pv, fv, grid_lanes_, render_owned_, b, e, grid, render_normals);
+      else
+        k.tessellate_normals(pv, fv, grid_lanes_, b, e, grid);
+    });
+    lap("tessellate_normals");
+  }
+  last_D_.assign(D, D + points * plan.components);
+  last_out_[0] = positions;
+  last_out_[1] = out_normals;
+  last_kind_ = kind;
   return times;
 }
 

@@ -1,6 +1,7 @@
 // Multithreaded CPU evaluator: runs the stages of eval/stages.hpp over all elements.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -9,6 +10,7 @@
 #include "smoothffd/eval/cpu_frame.hpp"
 #include "smoothffd/eval/cpu_sampling.hpp"
 #include "smoothffd/eval/cpu_tessellation.hpp"
+#include "smoothffd/eval/cpu_update.hpp"
 
 namespace sffd {
 
@@ -39,11 +41,29 @@ class CpuEvaluator : public Evaluator {
   // render vertex by its owner instead of once per triangle corner. render_normals null:
   // evaluate_positions.
   StageTimes evaluate_compact(const float* D, float* positions, float* render_normals) override;
+  // Incremental frames: the frame evaluate (corner_normals), evaluate_compact
+  // (render_normals) or evaluate_positions (both null) makes, recomputing only what reads a
+  // control point whose values differ (bitwise) from the previous frame's (eval/cpu_update.hpp):
+  // an edit that moves a few points of a large lattice costs the part of the mesh they reach.
+  // The output arrays must be the previous frame's, of the same kind, holding its output
+  // untouched: what no changed point reaches is left as it is there. When the previous frame
+  // was of another kind or wrote other arrays, or there was none (or it failed), a whole
+  // frame. Bitwise the whole frame's output either way.
+  StageTimes update(const float* D, float* positions, float* corner_normals, float* render_normals);
+  // What the last frame recomputed.
+  struct FrameCounts {
+    long long changed_points = 0;  // control points that differ from the frame before (all: a whole frame)
+    long long patches = 0;         // patches recomputed (all: a whole frame)
+  };
+  FrameCounts last_frame() const { return last_counts_; }
+  // Host memory of the incremental frames' tables (built on the first update; 0 before).
+  size_t update_bytes() const { return reach_ ? reach_->bytes() : 0; }
   int threads() const { return threads_; }
 
  private:
-  StageTimes run(const float* D, float* positions, float* corner_normals, float* render_normals);
-  void tessellate_positions(const PlanView& pv, const FrameView& fv);
+  enum class Kind { none, positions, corners, compact };
+  StageTimes run(const float* D, float* positions, float* corner_normals, float* render_normals, bool update);
+  void tessellate_positions(const PlanView& pv, const FrameView& fv, const ChangedRuns* runs);
   std::shared_ptr<const Plan> plan_;
   int threads_;
   const CpuFrameKernels* kernels_;  // the per-ISA per-frame loops
@@ -56,6 +76,16 @@ class CpuEvaluator : public Evaluator {
   EdgeEndNormals end_normals_;  // edge adjustment: its distinct end normals
   long long centre_widest_ = 0;  // the plan's longest centre row (floats)
   std::vector<float> sample_value_, sample_jacobian_, end_normal_, edge_control_, patch_control_, patch_normal_;
+  // Incremental frames: the previous frame's kind, output arrays and control values, and what
+  // each element reads (built on the first update).
+  Kind last_kind_ = Kind::none;
+  const float* last_out_[2] = {nullptr, nullptr};
+  std::vector<float> last_D_;
+  FrameCounts last_counts_;
+  std::unique_ptr<UpdateReach> reach_;
+  ChangedPoints changed_;
+  std::vector<uint8_t> hit_;  // per distinct block of reach_: whether a changed point is in it
+  ChangedRuns sample_runs_, end_runs_, edge_runs_, patch_runs_;
 };
 
 }  // namespace sffd

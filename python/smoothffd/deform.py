@@ -198,7 +198,8 @@ class Deformer:
                     a.setflags(write=False)
         return self._static
 
-    def deform(self, lattice_or_points=None, out=None, normals=True, layout="corners"):
+    def deform(self, lattice_or_points=None, out=None, normals=True, layout="corners",
+               incremental=False):
         """Deform with new control values.
 
         Pass a lattice (replanned automatically if its structure differs from the planned
@@ -223,13 +224,23 @@ class Deformer:
         a CompactResult: normals once per render vertex (R, 3), duplicated only where they
         split, the layout renderers and Blender take. Much less memory to write and move
         (docs/benchmarks.md); `out` is then a previous CompactResult.
+
+        incremental: with `out` the result this Deformer returned last (same normals and
+        layout, its arrays untouched since), recompute only what reads a control point that
+        moved since that call: dragging one point of a large lattice costs the part of the mesh
+        it reaches (docs/benchmarks.md). The rest of `out` is kept as it is; the output is
+        bitwise a whole frame's. Anything else (no `out`, another result, other normals or
+        layout, a new plan, the CUDA backend) runs a whole frame. `stats["recomputed_patches"]`
+        says what ran (CPU).
         """
         if layout not in _LAYOUTS:
             raise ValueError(f"layout: expected one of {_LAYOUTS}, got {layout!r}")
         with self._lock:
-            return self._deform(lattice_or_points, out, flag(normals, "normals"), layout)
+            return self._deform(lattice_or_points, out, flag(normals, "normals"), layout,
+                                flag(incremental, "incremental"))
 
-    def _deform(self, lattice_or_points, out=None, normals=True, layout="corners"):
+    def _deform(self, lattice_or_points, out=None, normals=True, layout="corners",
+                incremental=False):
         lat = lattice_or_points
         if lat is None:
             lat = self.lattice
@@ -264,8 +275,11 @@ class Deformer:
             if len(bufs) == 2 and np.shares_memory(bufs["positions"], bufs[nname]):
                 raise ValueError(f"out: its positions and {nname} share memory; each frame "
                                  "writes both, so they must be separate arrays")
+        # Incremental only into the arrays given (the evaluator also checks they are the ones
+        # it wrote last): a fresh array may sit where a dropped one was.
+        incremental = incremental and len(bufs) == (2 if normals else 1)
         try:
-            positions, nrm, stages = self._evaluate(values, bufs, normals, compact)
+            positions, nrm, stages = self._evaluate(values, bufs, normals, compact, incremental)
         except (RuntimeError, MemoryError) as exc:
             if self.device != "cuda":
                 raise
@@ -281,6 +295,10 @@ class Deformer:
                      output_triangles=p.output_triangles, fit_degree=p.fit_degree,
                      level=self.level)
         stats["layout"] = layout
+        if self.device == "cpu":
+            frame = self._evaluator.last_frame
+            stats["changed_points"] = frame["changed_points"]
+            stats["recomputed_patches"] = frame["patches"]
         if compact:
             return CompactResult(positions=positions, normals=nrm, render_vertex=s["render_vertex"],
                                  render_triangles=s["render_triangles"], triangles=s["triangles"],
@@ -292,13 +310,16 @@ class Deformer:
                       rest_positions=s["rest_positions"], sharp_edges=s["sharp_edges"],
                       stats=stats)
 
-    def _evaluate(self, values, bufs, normals, compact=False):
+    def _evaluate(self, values, bufs, normals, compact=False, incremental=False):
         """(positions, normals or None, stage times) from the evaluator."""
+        kw = dict(bufs)
+        if incremental and self.device == "cpu":
+            kw["incremental"] = True
         if compact:
-            return self._evaluator.evaluate_compact(values, with_normals=normals, **bufs)
+            return self._evaluator.evaluate_compact(values, with_normals=normals, **kw)
         if normals:
-            return self._evaluator.evaluate(values, **bufs)
-        positions, stages = self._evaluator.evaluate_positions(values, **bufs)
+            return self._evaluator.evaluate(values, **kw)
+        positions, stages = self._evaluator.evaluate_positions(values, **kw)
         return positions, None, stages
 
     def deform_on_device(self, lattice_or_points=None):

@@ -10,9 +10,12 @@ Workloads (default: sphere):
   targets  issue 21's targets, one table: suzanne, sphere4 and dense below;
   suzanne  Suzanne with Subsurf 2 applied (15,744 triangles, smooth), 4x4x4 lattice:
            levels 2, 3, 4 beside Subsurf 1 and 2 (level 2 ~ Subsurf 1, level 4 ~ Subsurf 2);
+  wrapped  suzanne in a 4x4x4 lattice wrapped around it (lattice(): the mesh crosses every
+           knot span, as with a lattice an artist fits; not part of targets);
   sphere4  the 46.8k-triangle sphere at level 4 beside Subsurf 2: updates per second;
-  dense    a 199,692-triangle sphere (quads), 8x8x8 lattice, level 2 beside Subsurf 1: one
-           lattice point moved against all points moved.
+  dense    a 199,692-triangle sphere (quads) in an 8x8x8 lattice wrapped around it (lattice()),
+           level 2 beside Subsurf 1: one lattice point moved (the middle one, and (1, 1, 1)
+           next to a corner) against all points moved.
 Smooth FFD rows on 4.5+: exact normals on every update (background mode), and "live", the
 viewport while a point is dragged (positions only, modifier_update.LIVE).
 
@@ -55,8 +58,8 @@ _GROUPS = {"targets": ("suzanne", "sphere4", "dense")}
 WORKLOADS = [w for a in argv()[1:] if a not in ("ab", "noexact")
              for w in _GROUPS.get(a, (a,))] or ["sphere"]
 for _w in WORKLOADS:
-    if _w not in ("sphere", "suzanne", "sphere4", "dense"):
-        sys.exit(f"bench_addon.py: unknown workload {_w!r} (sphere, targets, suzanne, sphere4, dense)")
+    if _w not in ("sphere", "suzanne", "wrapped", "sphere4", "dense"):
+        sys.exit(f"bench_addon.py: unknown workload {_w!r} (sphere, targets, suzanne, wrapped, sphere4, dense)")
 
 
 def sphere_mesh(name, u=180, v=131, triangulate=True):
@@ -120,14 +123,23 @@ def sphere(name):
     return link(bpy.data.objects.new(name, sphere_mesh(name)))
 
 
-def lattice(n=5, center=(0.0, 0.0, 0.0), size=(2.4, 2.4, 2.4)):
+def lattice(n=5, center=(0.0, 0.0, 0.0), size=(2.4, 2.4, 2.4), wrap=False):
     """n x n x n lattice (B-spline, Blender's default interpolation) around center, its
-    deformed points jittered by up to 0.03 of its size (the same seed for every run)."""
+    deformed points jittered by up to 0.03 of a cell (the same seed for every run).
+
+    Its points are made before it has an object, so Blender spaces them 1 apart (co from
+    -(n-1)/2 to (n-1)/2; a lattice resized in the UI keeps -0.5..0.5 instead). Scaled by
+    `size`, the lattice then spans (n-1) size, and a mesh of about `size` lies in its middle
+    knot span only: no knot plane cuts it, and only the middle 4 points an axis move it
+    (workloads suzanne, sphere4 and sphere, as their figures have always been measured).
+    wrap=True scales it to span `size` instead, as an artist fits a lattice around a mesh:
+    the mesh crosses every knot span, and each point moves the part of it near that point
+    (workload dense)."""
     lt = bpy.data.lattices.new("lat")
     lt.points_u = lt.points_v = lt.points_w = n   # 5: the paper's 5x5x5 control points
     obj = link(bpy.data.objects.new("lat", lt))
     obj.location = center
-    obj.scale = size
+    obj.scale = tuple(s / (n - 1) for s in size) if wrap else size
     rng = np.random.default_rng(1)
     for p in lt.points:
         p.co_deform = np.array(p.co) + rng.uniform(-0.03, 0.03, 3)
@@ -215,11 +227,18 @@ def center_point(lat):
     return lt.points_u // 2 + lt.points_u * (lt.points_v // 2 + lt.points_v * (lt.points_w // 2))
 
 
+def near_corner_point(lat):
+    """Index of point (1, 1, 1): next to the first corner (73 in an 8x8x8 lattice)."""
+    lt = lat.data
+    return 1 + lt.points_u * (1 + lt.points_v)
+
+
 def _move(lat, move, sign):
-    """Moves the middle point ("one") or every point ("all", each its own direction)."""
+    """Moves the middle point ("one"), point (1, 1, 1) ("corner") or every point ("all", each
+    its own direction)."""
     pts = lat.data.points
-    if move == "one":
-        pts[center_point(lat)].co_deform.z += 0.01 * sign
+    if move in ("one", "corner"):
+        pts[center_point(lat) if move == "one" else near_corner_point(lat)].co_deform.z += 0.01 * sign
         return
     d = np.random.default_rng(2).uniform(-0.01, 0.01, (len(pts), 3))
     for p, dp in zip(pts, d):
@@ -228,7 +247,8 @@ def _move(lat, move, sign):
 
 def time_edit(lat, obj, repeats, mod=None, early_modes=(True,), moves=("one",)):
     """{(early, move): (median ms, split)}: ms from moving lattice points (move "one": the
-    middle point, "all": every point; the points are moved before the clock starts) to the
+    middle point, "corner": point (1, 1, 1), "all": every point; the points are moved before
+    the clock starts) to the
     evaluated mesh being ready, and the median of each phase (see the module docstring) and
     of Smooth FFD's own timings. With early_modes=(True, False) the updates alternate
     between the add-on as shipped and the add-on without its depsgraph_update_pre handler;
@@ -262,6 +282,8 @@ def time_edit(lat, obj, repeats, mod=None, early_modes=(True,), moves=("one",)):
         for k in ("deform_ms", "mesh_write_ms", "normals_ms"):
             split[k] = med([lt.get(k, 0.0) for lt in own])
         split["core_ms"] = med([lt.get("stats", {}).get("deform_ms", 0.0) for lt in own])
+        split["patch_share"] = med([lt.get("stats", {}).get("recomputed_patches", 0) /
+                                    max(lt.get("stats", {}).get("patches", 1), 1) for lt in own])
         split["normals_path"] = own[-1].get("normals") if own else None
         split["device"] = own[-1].get("stats", {}).get("device") if own else None
         out[key] = (med(times), split)
@@ -399,7 +421,8 @@ def sffd_rows(workload, mesh, lat, levels, moves=("one",)):
             floor = time_reevaluation(obj, REPEATS)
             for move in moves:
                 ms, sp = timed[True, move]
-                detail = (f"core deform {sp['core_ms']:.1f} / mesh write {sp['mesh_write_ms']:.1f}"
+                detail = (f"core deform {sp['core_ms']:.1f} ({sp['patch_share']:.0%} of the patches)"
+                          f" / mesh write {sp['mesh_write_ms']:.1f}"
                           f" / normals {sp['normals_ms']:.1f} [{sp['normals_path']}]; "
                           f"{_phase_text(sp)}; Blender alone (nothing new) {floor:.1f}; "
                           f"first update (plan) {first:.0f}")
@@ -423,10 +446,10 @@ def _bbox(mesh):
 
 def workload_rows(workload):
     clear_objects()
-    if workload == "suzanne":
+    if workload in ("suzanne", "wrapped"):
         mesh = suzanne_mesh()
         center, ext = _bbox(mesh)
-        lat = lattice(4, tuple(center), tuple(1.05 * ext))
+        lat = lattice(4, tuple(center), tuple(1.05 * ext), wrap=workload == "wrapped")
         rows = stack_rows(workload, mesh, lat, (1, 2)) + sffd_rows(workload, mesh, lat, (2, 3, 4))
     elif workload == "sphere4":
         mesh = sphere_mesh("sphere")
@@ -434,8 +457,8 @@ def workload_rows(workload):
         rows = stack_rows(workload, mesh, lat, (2,)) + sffd_rows(workload, mesh, lat, (4,))
     else:   # dense: 199,692 triangles
         mesh = cube_sphere_mesh("dense")
-        lat = lattice(8)
-        moves = ("one", "all")
+        lat = lattice(8, size=(2.1, 2.1, 2.1), wrap=True)
+        moves = ("one", "corner", "all")
         rows = stack_rows(workload, mesh, lat, (1,), moves) + sffd_rows(workload, mesh, lat, (2,), moves)
     bpy.data.meshes.remove(mesh)
     clear_objects()
@@ -462,10 +485,10 @@ def workload_targets(workloads):
         rows += workload_rows(w)
     print(f"load average at the end: {_load()}; ms are medians (phases too, so they need not add "
           f"up); speedup = the stack's ms / Smooth FFD's ms")
-    print(f"{'Blender':8s} {'workload':8s} {'tris in':>8s} {'':24s} {'move':4s} {'tris out':>10s} "
+    print(f"{'Blender':8s} {'workload':8s} {'tris in':>8s} {'':24s} {'move':6s} {'tris out':>10s} "
           f"{'update ms':>9s}   split (ms)")
     for r in rows:
-        print(f"{ver:8s} {r['workload']:8s} {r['tris_in']:8d} {r['name']:24s} {r['move']:4s} "
+        print(f"{ver:8s} {r['workload']:8s} {r['tris_in']:8d} {r['name']:24s} {r['move']:6s} "
               f"{r['tris']:10d} {r['ms']:9.1f}   {r['detail']}")
 
     def pair(w, a, b, move="one"):
@@ -474,13 +497,13 @@ def workload_targets(workloads):
 
     # " live": the 4.5+ viewport while a point is dragged (positions only), beside the exact rows.
     for sfx in [""] + [" live"] * any(r["name"].endswith(" live") for r in rows):
-        if "suzanne" in workloads:
-            s, f, x = pair("suzanne", "Lattice + Subsurf 1", "Smooth FFD level 2" + sfx)
-            print(f"target (a) {ver} suzanne: Smooth FFD level 2{sfx} ({f['tris']} tris) "
+        for w in [w for w in ("suzanne", "wrapped") if w in workloads]:
+            s, f, x = pair(w, "Lattice + Subsurf 1", "Smooth FFD level 2" + sfx)
+            print(f"target (a) {ver} {w}: Smooth FFD level 2{sfx} ({f['tris']} tris) "
                   f"{f['ms']:.1f} ms vs Lattice + Subsurf 1 ({s['tris']} tris) {s['ms']:.1f} ms: "
                   f"speedup {x:.2f}x; target >= 2x: {_verdict(x >= 2)}")
             for lv, sub in ((3, 1), (3, 2), (4, 2)):
-                s, f, x = pair("suzanne", f"Lattice + Subsurf {sub}", f"Smooth FFD level {lv}{sfx}")
+                s, f, x = pair(w, f"Lattice + Subsurf {sub}", f"Smooth FFD level {lv}{sfx}")
                 per_tri = (s["ms"] / s["tris"]) / (f["ms"] / f["tris"])
                 print(f"  (a) level {lv}{sfx} ({f['tris']} tris) vs Subsurf {sub} ({s['tris']} tris): "
                       f"{x:.2f}x in time, {per_tri:.2f}x per output triangle")
@@ -492,13 +515,16 @@ def workload_targets(workloads):
                   f"{1e3 / s['ms']:.1f}/s: speedup {x:.2f}x; target >= 10 updates/s: "
                   f"{_verdict(ups >= 10)}")
         if "dense" in workloads:
-            f1, fa = (_find(rows, "dense", "Smooth FFD level 2" + sfx, m) for m in ("one", "all"))
-            s1, sa = (_find(rows, "dense", "Lattice + Subsurf 1", m) for m in ("one", "all"))
-            print(f"target (c) {ver} dense: Smooth FFD level 2{sfx} ({f1['tris']} tris) one point "
-                  f"{f1['ms']:.1f} ms, all points {fa['ms']:.1f} ms (all/one "
-                  f"{fa['ms'] / f1['ms']:.2f}); Lattice + Subsurf 1 ({s1['tris']} tris) one "
-                  f"{s1['ms']:.1f}, all {sa['ms']:.1f} (all/one {sa['ms'] / s1['ms']:.2f}); stack / "
-                  f"Smooth FFD: one point {s1['ms'] / f1['ms']:.2f}x, all points "
+            f1, fc, fa = (_find(rows, "dense", "Smooth FFD level 2" + sfx, m)
+                          for m in ("one", "corner", "all"))
+            s1, sc, sa = (_find(rows, "dense", "Lattice + Subsurf 1", m)
+                          for m in ("one", "corner", "all"))
+            print(f"target (c) {ver} dense: Smooth FFD level 2{sfx} ({f1['tris']} tris) middle "
+                  f"point {f1['ms']:.1f} ms, point (1,1,1) {fc['ms']:.1f} ms, all points "
+                  f"{fa['ms']:.1f} ms (all/middle {fa['ms'] / f1['ms']:.2f}, all/(1,1,1) "
+                  f"{fa['ms'] / fc['ms']:.2f}); Lattice + Subsurf 1 ({s1['tris']} tris) middle "
+                  f"{s1['ms']:.1f}, (1,1,1) {sc['ms']:.1f}, all {sa['ms']:.1f}; stack / Smooth FFD: "
+                  f"middle {s1['ms'] / f1['ms']:.2f}x, (1,1,1) {sc['ms'] / fc['ms']:.2f}x, all "
                   f"{sa['ms'] / fa['ms']:.2f}x (reported; no numeric target)")
     sys.stdout.flush()
 

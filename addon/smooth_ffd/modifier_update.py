@@ -402,13 +402,15 @@ def update_modifier(obj, mod, depsgraph, render=False, mesh_changed=True, force=
                 st.deformer = core.make_deformer(source, lattice, level, backend)
             st.plan_key = plan_key
             plans_built[0] += 1
-        # out=: overwrite the previous update's arrays in place (no fresh pages each edit).
-        # Without exact normals (3.4-4.4 viewport: Blender shades the dense mesh from its own
-        # geometry, _write_result) the core computes positions only: the same positions in
-        # well under half the time (res.normals is None then).
+        # out=: overwrite the previous update's arrays in place (no fresh pages each edit);
+        # incremental: recompute only what the lattice points that moved since reach (the
+        # previous update's arrays are read only here and by the writes). Without exact
+        # normals (3.4-4.4 viewport: Blender shades the dense mesh from its own geometry,
+        # _write_result) the core computes positions only: the same positions in well under
+        # half the time (res.normals is None then).
         layout = LAYOUT or _layout(st.deformer.plan)
         res = st.result = st.outs[layout] = st.deformer.deform(
-            lattice, out=st.outs.get(layout), normals=exact, layout=layout)
+            lattice, out=st.outs.get(layout), normals=exact, layout=layout, incremental=True)
         deform_calls["normals" if exact else "positions_only"] += 1
         t1 = time.perf_counter()
         if st.output[0] is not st.plan_key:

@@ -384,6 +384,44 @@ def test_live_editing():
         modifier_update.LIVE, modifier_update.SETTLE = live, settle
 
 
+def test_incremental_updates():
+    """A lattice edit recomputes only what the moved points reach (the core's incremental
+    frames, Deformer.deform(incremental=True)): on Suzanne in a 9x9x9 lattice most one-point
+    edits recompute part of the patches, and after each edit of a run the core's output the
+    add-on wrote is bitwise a whole frame of the same inputs, exact or not."""
+    obj, lat, ref, mod = scene("suzanne", shape=(9, 9, 9))
+    st = modifier_update.state_of(obj, mod)
+    partial = 0
+    # Points (u, v, w) at u + 9 (v + 9 w): (2, 4, 4), again, (6, 4, 4), (0, 0, 0) (reaching
+    # nothing of the mesh), then with exact normals (4, 2, 4), (4, 4, 6), and all at once.
+    for i, (idx, exact) in enumerate(((362, False), (362, False), (366, False), (0, False),
+                                      (346, True), (526, True), (None, False))):
+        compat.set_modifier_input(mod, "Exact Normals", exact)
+        for p in (lat.data.points if idx is None else [lat.data.points[idx]]):
+            p.co_deform.z += 0.05
+        obj.update_tag()
+        T.update()
+        name = f"edit {i + 1} ({'all points' if idx is None else f'point {idx}'}" \
+               f"{', exact' if exact else ''})"
+        parity(f"{name}: parity", obj, lat, ref, mod)
+        d, res = st.deformer, st.result
+        patches = res.stats.get("recomputed_patches")
+        T.check(f"{name}: patches recomputed reported", patches is not None and
+                0 <= patches <= d.plan.patches, f"{patches} of {d.plan.patches}")
+        partial += patches is not None and 0 < patches < d.plan.patches
+        compact = meshio.is_compact(res)
+        normals = (res.normals if compact else res.corner_normals) is not None
+        whole = type(d)(d.mesh, d.lattice, level=d.level, device="cpu").deform(
+            normals=normals, layout=res.stats["layout"])
+        same = np.array_equal(res.positions.view(np.uint32), whole.positions.view(np.uint32))
+        if normals:
+            nn = "normals" if compact else "corner_normals"
+            same = same and np.array_equal(getattr(res, nn), getattr(whole, nn))
+        T.check(f"{name}: bitwise a whole frame", same)
+    T.check("incremental: one-point edits recompute part of the mesh", partial >= 4,
+            f"{partial} of 7")
+
+
 def test_levels():
     obj, lat, ref, mod = scene(level=1)
     for level in (1, 2, 4):
@@ -720,7 +758,7 @@ def source_digest_mesh(me):
 
 def main():
     T.setup()
-    for fn in (test_lattice_edits, test_update_path, test_positions_only_path, test_live_editing, test_levels, test_frames_and_shape_keys, test_uvs_materials, test_hook, test_edit_modes,
+    for fn in (test_lattice_edits, test_update_path, test_positions_only_path, test_live_editing, test_incremental_updates, test_levels, test_frames_and_shape_keys, test_uvs_materials, test_hook, test_edit_modes,
                test_errors, test_undo, test_duplicate, test_save_reload, test_backend_setting,
                test_text_backend_file, test_apply_remove):
         T.run(fn.__name__, fn)

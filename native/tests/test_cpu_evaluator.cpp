@@ -292,7 +292,9 @@ TEST(CpuEvaluator, UpdateMatchesWholeFramesBitwise) {
         CpuEvaluator whole(plan);
         frame(whole, false, want_pos.data(), want_nrm.data());
         ASSERT_EQ(0, std::memcmp(pos.data(), want_pos.data(), 4 * N)) << "case " << cases << " kind " << kind << " step " << step;
-        ASSERT_EQ(0, std::memcmp(nrm.data(), want_nrm.data(), 4 * nn)) << "case " << cases << " kind " << kind << " step " << step;
+        // (positions only: no normals, and memcmp may not be handed the empty vectors' nullptr)
+        ASSERT_TRUE(nn == 0 || std::memcmp(nrm.data(), want_nrm.data(), 4 * nn) == 0)
+            << "case " << cases << " kind " << kind << " step " << step;
         const CpuEvaluator::FrameCounts c = inc.last_frame();
         if (step == 0 || step == 7) EXPECT_EQ(c.patches, plan->patches);
         if (step == 6) {

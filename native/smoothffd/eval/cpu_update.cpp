@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "smoothffd/core/parallel.hpp"
+#include "smoothffd/eval/stages.hpp"
 
 namespace sffd {
 
@@ -144,12 +145,12 @@ UpdateReach make_update_reach(const Plan& plan, const SampleBatches& batches,
       for (int k = 0; k < 3; ++k) blocks.add(block, plan.patch_vertex[3 * (size_t)p + k]);
       for (int k = 0; k < 3; ++k) join(block, edges[plan.patch_edge[3 * (size_t)p + k]]);
       if (!plan.centre_box.empty()) {
-        const uint64_t box = plan.centre_box[p];
+        int lo[3], ext[3];
+        unpack_centre_box(plan.centre_box[p], lo, ext);
         for (int a = 0; a < 3; ++a) {
-          const int lo = (int)((box >> (16 * a)) & 0xffffu), ext = (int)((box >> (48 + 5 * a)) & 31u);
-          if (ext == 0) continue;
-          block.lo[a] = std::min<int>(block.lo[a], lo);
-          block.hi[a] = std::max<int>(block.hi[a], std::min(lo + ext - 1, plan.dims[a] - 1));
+          if (ext[a] == 0) continue;
+          block.lo[a] = std::min<int>(block.lo[a], lo[a]);
+          block.hi[a] = std::max<int>(block.hi[a], std::min(lo[a] + ext[a] - 1, plan.dims[a] - 1));
         }
       }
     }

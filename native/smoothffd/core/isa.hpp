@@ -40,6 +40,10 @@
 #define SFFD_ISA_NAME "x86-64-v2"
 #elif defined(__x86_64__)
 #define SFFD_ISA_NAME "x86-64"
+#elif defined(__aarch64__)
+// 64-bit Arm: Advanced SIMD (NEON) is part of every ARMv8-A CPU, so the baseline copy is the
+// vector code (eval/lanes.hpp's vectors become NEON registers) and there is nothing to choose.
+#define SFFD_ISA_NAME "armv8-a"
 #else
 #define SFFD_ISA_NAME "generic"
 #endif

@@ -18,7 +18,7 @@
 #include <system_error>
 #include <thread>
 #include <vector>
-#if defined(__unix__)
+#if defined(__unix__) || defined(__APPLE__)
 #include <unistd.h>
 #endif
 
@@ -56,7 +56,7 @@ class WorkerPool {
       std::atomic<bool>& busy;
       ~Release() { busy.store(false); }
     } release{busy_};
-#if defined(__unix__)
+#if defined(__unix__) || defined(__APPLE__)
     if (getpid() != pid_) return false;
 #endif
     add_workers(n - 1);
@@ -84,7 +84,7 @@ class WorkerPool {
 
  private:
   WorkerPool() {
-#if defined(__unix__)
+#if defined(__unix__) || defined(__APPLE__)
     pid_ = getpid();
 #endif
   }
@@ -96,6 +96,8 @@ class WorkerPool {
     for (int i = 1; pending(); ++i) {
 #if defined(__x86_64__) || defined(__i386__)
       __builtin_ia32_pause();
+#elif defined(__aarch64__)
+      __asm__ __volatile__("yield");
 #endif
       if (i % 64 == 0 && std::chrono::steady_clock::now() > end) return;
     }
@@ -167,7 +169,7 @@ class WorkerPool {
   int active_ = 0;  // workers inside the job
   std::exception_ptr error_;
   int workers_ = 0;
-#if defined(__unix__)
+#if defined(__unix__) || defined(__APPLE__)
   pid_t pid_ = 0;
 #endif
 };

@@ -60,8 +60,10 @@ const CublasApi& cublas_api() {
     // The system's search (LD_LIBRARY_PATH, ld.so.cache), then the toolkit's usual places.
     std::string why;
     void* h = platform::open_library(cublas_library(), &why);
-    for (const char* const* d = platform::cuda_toolkit_library_dirs(); !h && *d; ++d)
-      h = platform::open_library(platform::path_join(*d, cublas_library()), nullptr);
+    for (const std::string& d : platform::cuda_toolkit_library_dirs()) {
+      if (h) break;
+      h = platform::open_library(platform::path_join(d, cublas_library()), nullptr);
+    }
     if (!h) {
       failure = "the cublas path needs " + cublas_library() + " from the CUDA toolkit: " + why + " (also not in " +
                 platform::cuda_toolkit_library_dirs()[0] + "); the default path, 'fused', does not need it";

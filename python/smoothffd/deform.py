@@ -2,6 +2,7 @@
 
 import logging
 import os
+import sys
 import threading
 import time
 import warnings
@@ -72,7 +73,10 @@ def cuda_status():
 
 def _available_memory():
     """Bytes the system can give without swapping: Linux's MemAvailable (free memory plus the
-    page cache and other memory it can reclaim), else free pages, else None (no check)."""
+    page cache and other memory it can reclaim), Windows' available physical memory, else free
+    pages, else None (no check)."""
+    if sys.platform == "win32":
+        return _windows_available_memory()
     try:
         with open("/proc/meminfo", "rb") as fh:
             for line in fh:
@@ -84,6 +88,27 @@ def _available_memory():
         return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
     except (ValueError, OSError, AttributeError):
         return None
+
+
+def _windows_available_memory():
+    """GlobalMemoryStatusEx's ullAvailPhys (physical memory free or reclaimable), or None."""
+    import ctypes
+
+    class MemoryStatusEx(ctypes.Structure):
+        _fields_ = [("dwLength", ctypes.c_uint32), ("dwMemoryLoad", ctypes.c_uint32),
+                    ("ullTotalPhys", ctypes.c_uint64), ("ullAvailPhys", ctypes.c_uint64),
+                    ("ullTotalPageFile", ctypes.c_uint64), ("ullAvailPageFile", ctypes.c_uint64),
+                    ("ullTotalVirtual", ctypes.c_uint64), ("ullAvailVirtual", ctypes.c_uint64),
+                    ("ullAvailExtendedVirtual", ctypes.c_uint64)]
+
+    status = MemoryStatusEx()
+    status.dwLength = ctypes.sizeof(MemoryStatusEx)
+    try:
+        if ctypes.windll.kernel32.GlobalMemoryStatusEx(ctypes.byref(status)):
+            return int(status.ullAvailPhys)
+    except (AttributeError, OSError):
+        pass
+    return None
 
 
 def _estimate_bytes(mesh, lattice, level):

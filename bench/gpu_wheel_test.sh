@@ -1,29 +1,24 @@
 #!/usr/bin/env bash
-# The shipped package on a real GPU (issue "Install anywhere"): the lent machine has CPython
-# 3.12 and no package registry, so a cp312 wheel is made here from the same sources with the
-# very CUDA library of dist/'s wheels, carried in .devwheel/, installed there into /tmp/site
-# and tested from outside the tree:
-#   here:  bash bench/device_wheel_test.sh prep [PYTHON3.12]   (after scripts/package.sh)
-#   there: bash bench/device_wheel_test.sh run                 (device tool, carry .devwheel)
-# `run` writes its logs to $OUT: the whole non-Blender suite, the GPU suites again with
-# CUDA_FORCE_PTX_JIT=1 (the path GPUs newer than the built architectures take), and W1.
+# The shipped Linux x86-64 wheel on a GPU machine (an H100 with CUDA 13 and a driver for it,
+# CPython 3.12 with numpy and pytest, no package registry needed): dist/'s cp312 wheel,
+# the very file scripts/package.sh made, is installed into /tmp/site and the suites run from
+# outside the source tree:
+#   on the build machine:  bash bench/gpu_wheel_test.sh prep    (after scripts/package.sh;
+#                          copies the wheel to .devwheel/, which git ignores)
+#   on the GPU machine:    bash bench/gpu_wheel_test.sh run     (in a copy of the checkout
+#                          that has .devwheel/)
+# `run` writes its logs to $OUT (default /tmp/out): the whole non-Blender suite, the GPU
+# suites again with CUDA_FORCE_PTX_JIT=1 (the path GPUs newer than the built architectures
+# take), and W1.
 set -uo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 case "${1:-}" in
 prep)
     set -e
-    PY="${2:-$HOME/.pyenv/versions/3.12.1/bin/python}"
-    CACHE="${SMOOTHFFD_CACHE:-$HOME/.cache/smoothffd}"
-    lib="$ROOT/build/package/libsmoothffd_cuda.so"   # scripts/package.sh leaves it there
-    [ -f "$lib" ] || { echo "prep: run scripts/package.sh first" >&2; exit 1; }
-    "$PY" -m venv "$CACHE/venv-build312"
-    "$CACHE/venv-build312/bin/pip" install -q --upgrade pip
-    rm -rf "$ROOT/.devwheel" "$ROOT/build/package/raw312"
-    "$CACHE/venv-build312/bin/pip" wheel "$ROOT" --no-deps -q -w "$ROOT/build/package/raw312" \
-        -C build-dir=build/skbuild/cp312 -C cmake.define.SMOOTHFFD_CUDA=OFF \
-        -C cmake.define.SMOOTHFFD_CUDA_PREBUILT="$lib"
-    PATH="$CACHE/venv-package/bin:$PATH" auditwheel repair --plat manylinux_2_34_x86_64 \
-        -w "$ROOT/.devwheel" "$ROOT"/build/package/raw312/*.whl
+    wheel=$(ls "$ROOT"/dist/smoothffd-*-cp312-cp312-manylinux_2_28_x86_64.whl 2>/dev/null | head -1)
+    [ -n "$wheel" ] || { echo "prep: run scripts/package.sh first" >&2; exit 1; }
+    rm -rf "$ROOT/.devwheel"; mkdir -p "$ROOT/.devwheel"
+    cp "$wheel" "$ROOT/.devwheel/"
     grep -qx '/.devwheel/' "$ROOT/.git/info/exclude" || echo '/.devwheel/' >> "$ROOT/.git/info/exclude"
     ls -l "$ROOT/.devwheel" ;;
 run)

@@ -74,8 +74,8 @@ def artefacts():
     if dist in ("", "0", "source") or not os.path.isdir(dist):
         return {}
     zips = sorted(glob.glob(os.path.join(dist, "*.zip")))
-    # One extension zip per platform: this machine's (linux-x64) or one without platforms.
-    for z in sorted(zips, key=lambda z: ("linux" not in os.path.basename(z).lower(), z)):
+    # One extension zip and one legacy zip per platform: this machine's (linux_x64).
+    for z in sorted(zips, key=lambda z: ("linux_x64" not in os.path.basename(z).lower(), z)):
         kind = _classify(z)
         if kind and kind not in found:
             found[kind] = os.path.abspath(z)
@@ -261,4 +261,19 @@ def test_install_zip(runner, addon_zip, blender_env):
     env.update({"SFFD_TEST_ADDON_ZIP": None,
                 "PYTHONPATH": _strip_source(os.environ.get("PYTHONPATH"))})
     rc, out = _run(blender_cmd(runner, "check_install.py", zip_path), extra_env=env)
+    assert rc == 0 and " passed, 0 failed" in out, _summary(out) + out[-2000:]
+
+
+@pytest.mark.parametrize("runner", [r for r in RUNNERS if BLENDERS[r] >= (4, 2)])
+def test_install_from_repository(runner, addon_zip, blender_env, tmp_path):
+    """dist/repository as a studio serves it (a shared folder here, file://): added once as a
+    remote repository, synced, and the add-on installed from it by Blender's own operators,
+    which pick this platform's zip from index.json."""
+    repo = os.path.join(os.path.dirname(artefacts()["extension"]), "repository")
+    if not os.path.isfile(os.path.join(repo, "index.json")):
+        pytest.fail(f"{repo}/index.json is missing: scripts/package.sh makes it")
+    env = blender_env(runner)
+    env.update({"SFFD_TEST_ADDON_ZIP": None,
+                "PYTHONPATH": _strip_source(os.environ.get("PYTHONPATH"))})
+    rc, out = _run(blender_cmd(runner, "check_repository.py", repo), extra_env=env)
     assert rc == 0 and " passed, 0 failed" in out, _summary(out) + out[-2000:]

@@ -11,14 +11,9 @@ import bpy
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
-def main():
-    zip_path = sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv else sys.argv[1]
-    if bpy.app.version >= (4, 2):
-        r = bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default",
-                                                     enable_on_install=True)
-    else:
-        bpy.ops.preferences.addon_install(filepath=zip_path, overwrite=True)
-        r = bpy.ops.preferences.addon_enable(module="smooth_ffd")
+def installed_checks(r):
+    """The checks after an install operator returned `r`: the add-on registered, runs its
+    bundled core, and a Smooth FFD modifier works."""
     names = [m for m in sys.modules if m == "smooth_ffd" or m.endswith(".smooth_ffd")]
     checks = [("install operator finished", r == {'FINISHED'}, r),
               ("add-on module loaded", bool(names), names)]
@@ -37,6 +32,10 @@ def main():
         lat_obj.scale = (2, 2, 2)
         mod = addon.add_smooth_ffd(obj, lat_obj, 2, 2)
         checks.append(("modifier works", addon.status(mod).startswith("OK"), addon.status(mod)))
+    return checks
+
+
+def report(checks):
     failed = 0
     for name, ok, detail in checks:
         print(f"{'PASS' if ok else 'FAIL'} {name} {detail}")
@@ -49,4 +48,16 @@ def main():
         raise SystemExit(1)
 
 
-main()
+def main():
+    zip_path = sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv else sys.argv[1]
+    if bpy.app.version >= (4, 2):
+        r = bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default",
+                                                     enable_on_install=True)
+    else:
+        bpy.ops.preferences.addon_install(filepath=zip_path, overwrite=True)
+        r = bpy.ops.preferences.addon_enable(module="smooth_ffd")
+    report(installed_checks(r))
+
+
+if __name__ == "__main__":
+    main()

@@ -7,7 +7,7 @@ Lattice + Subdivision Surface at the same density, in the same run. Prints, asse
 Workloads (default: sphere):
   sphere   the 46.8k-triangle sphere, 5x5x5 lattice: Smooth FFD viewport levels 4 and 10
            beside Lattice + Subsurf levels 2 and 3 (and exact normals on 3.4-4.0);
-  targets  issue 21's targets, one table: suzanne, sphere4 and dense below;
+  targets  the live-update table of docs/benchmarks.md: suzanne, sphere4 and dense below;
   suzanne  Suzanne with Subsurf 2 applied (15,744 triangles, smooth), 4x4x4 lattice:
            levels 2, 3, 4 beside Subsurf 1 and 2 (level 2 ~ Subsurf 1, level 4 ~ Subsurf 2);
   wrapped  suzanne in a 4x4x4 lattice wrapped around it (lattice(): the mesh crosses every
@@ -376,7 +376,7 @@ def workload_sphere():
     sys.stdout.flush()
 
 
-# --- issue 21's targets: one table over several workloads -------------------------------------
+# --- the live-update targets: one table over several workloads -------------------------------------
 
 def stack_rows(workload, mesh, lat, levels, moves=("one",)):
     """Rows of Lattice + Subdivision Surface at each level on a copy of mesh."""

@@ -367,7 +367,7 @@ def workload_sphere():
     print(f"{'':34s} {'triangles':>10s} {'update ms':>10s} {'ns/tri':>7s}")
     for name, tris, ms, detail in rows:
         print(f"{name:34s} {tris:10d} {ms:10.0f} {1e6 * ms / tris:7.0f}   {detail}")
-    # The issue's comparison: viewport level 4 vs Subsurf level 2, level 10 vs level 3.
+    # The comparison: viewport level 4 vs Subsurf level 2, level 10 vs level 3.
     by_name = {name: (tris, ms) for name, tris, ms, _ in rows}
     for level, sub in ((4, 2), (10, 3)):
         (t1, m1), (t0, m0) = by_name[f"Smooth FFD level {level}"], by_name[f"Lattice + Subsurf level {sub}"]
@@ -475,7 +475,7 @@ def _verdict(ok):
 
 
 def workload_targets(workloads):
-    """Issue 21's targets: rows for each workload, then one line per target."""
+    """The live-update targets (docs/benchmarks.md): rows for each workload, then one line per target."""
     ver = bpy.app.version_string.split()[0]
     print(f"Blender {bpy.app.version_string}, {os.cpu_count()} CPUs, CPU backend; one live update "
           f"= move lattice points + depsgraph update until the evaluated mesh is ready; median of "

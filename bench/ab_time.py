@@ -1,5 +1,5 @@
 """Times the fused path on W1 (L = 10) with whichever smoothffd is first on the path:
-bench/ab_device.sh runs it alternately against two builds in one device call, so that a
+bench/gpu_ab.sh runs it alternately against two builds in one run, so that a
 change is compared with its reference on the same machine (the floor varies between calls).
 
     PYTHONPATH=<tree>/python python3 bench/ab_time.py [--iters 100] [--level 10] [--label new]

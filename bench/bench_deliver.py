@@ -10,7 +10,7 @@ Rows (median ms over the repeats, layouts alternating so the machine's drift hit
   compact reuse      deform(layout="compact", out=previous)
   compact pinned     the same into page-locked arrays (CUDA only; cudaHostAlloc via ctypes)
 On CUDA the last row's copy_back stage is the pure device-to-host transfer of the compact
-output into pinned memory: the floor the issue's target is stated against.
+output into pinned memory: the floor a delivered frame is measured against.
 """
 
 import argparse

@@ -1,4 +1,4 @@
-"""GPU benchmark of smooth FFD (issue 3): W1 (paper Table 1) at several levels, a 1M-triangle
+"""GPU benchmark of smooth FFD: W1 (paper Table 1) at several levels, a 1M-triangle
 mesh, fused vs cuBLAS paths, ratio to the CPU backend, the uniform upsampling baseline
 (paper Table 5), and the inline kernel's other modes where a plan or a device calls for them
 (smaller GPUs emulated by their shared memory, a degree-4 lattice). Writes a JSON with every

@@ -1,5 +1,5 @@
 """How many sample evaluations the inline kernel would save by sharing the samples of a group's
-patches (issue 3's remaining idea), on W1 at L = 10, host only (no GPU needed).
+patches (an idea not taken up), on W1 at L = 10, host only (no GPU needed).
 
 Today every patch evaluates its 28 columns: 10 interior samples, 5 on each edge, 3 corners. A
 sample on an edge belongs to both patches of the edge, a corner to every patch around the

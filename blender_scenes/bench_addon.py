@@ -7,7 +7,7 @@ Lattice + Subdivision Surface at the same density, in the same run. Prints, asse
 Workloads (default: sphere):
   sphere   the 46.8k-triangle sphere, 5x5x5 lattice: Smooth FFD viewport levels 4 and 10
            beside Lattice + Subsurf levels 2 and 3 (and exact normals on 3.4-4.0);
-  targets  issue 21's targets, one table: suzanne, sphere4 and dense below;
+  targets  the live-update table of docs/benchmarks.md: suzanne, sphere4 and dense below;
   suzanne  Suzanne with Subsurf 2 applied (15,744 triangles, smooth), 4x4x4 lattice:
            levels 2, 3, 4 beside Subsurf 1 and 2 (level 2 ~ Subsurf 1, level 4 ~ Subsurf 2);
   wrapped  suzanne in a 4x4x4 lattice wrapped around it (lattice(): the mesh crosses every
@@ -367,7 +367,7 @@ def workload_sphere():
     print(f"{'':34s} {'triangles':>10s} {'update ms':>10s} {'ns/tri':>7s}")
     for name, tris, ms, detail in rows:
         print(f"{name:34s} {tris:10d} {ms:10.0f} {1e6 * ms / tris:7.0f}   {detail}")
-    # The issue's comparison: viewport level 4 vs Subsurf level 2, level 10 vs level 3.
+    # The comparison: viewport level 4 vs Subsurf level 2, level 10 vs level 3.
     by_name = {name: (tris, ms) for name, tris, ms, _ in rows}
     for level, sub in ((4, 2), (10, 3)):
         (t1, m1), (t0, m0) = by_name[f"Smooth FFD level {level}"], by_name[f"Lattice + Subsurf level {sub}"]
@@ -376,7 +376,7 @@ def workload_sphere():
     sys.stdout.flush()
 
 
-# --- issue 21's targets: one table over several workloads -------------------------------------
+# --- the live-update targets: one table over several workloads -------------------------------------
 
 def stack_rows(workload, mesh, lat, levels, moves=("one",)):
     """Rows of Lattice + Subdivision Surface at each level on a copy of mesh."""
@@ -475,7 +475,7 @@ def _verdict(ok):
 
 
 def workload_targets(workloads):
-    """Issue 21's targets: rows for each workload, then one line per target."""
+    """The live-update targets (docs/benchmarks.md): rows for each workload, then one line per target."""
     ver = bpy.app.version_string.split()[0]
     print(f"Blender {bpy.app.version_string}, {os.cpu_count()} CPUs, CPU backend; one live update "
           f"= move lattice points + depsgraph update until the evaluated mesh is ready; median of "

@@ -1,4 +1,4 @@
-"""Playback of a rigged character (issue 18, item 6): Armature + Smooth FFD at viewport level 3
+"""Playback of a rigged character: Armature + Smooth FFD at viewport level 3
 against Armature + Lattice + Subdivision Surface at the same density, in the same run. Prints
 frames per second, asserts nothing.
 

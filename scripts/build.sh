@@ -2,13 +2,15 @@
 # Configures and builds the native core, its unit tests and the Python module
 # (python/smoothffd/_core*.so, built for Debian's /usr/bin/python3 = Blender 3.4's Python).
 # The CUDA backend is built whenever nvcc is found (/usr/local/cuda/bin is searched too).
+# SMOOTHFFD_TESTS=OFF leaves out the GoogleTest unit tests (scripts/setup.sh --demo); the value
+# is passed on every run, so a later default build brings them back into the same build/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD_DIR=${BUILD_DIR:-build}
 PY=${PYTHON:-/usr/bin/python3}
 [ -x "$PY" ] || PY=$(command -v python3)
 export PATH="$PATH:/usr/local/cuda/bin"
-extra=()
+extra=(-DSMOOTHFFD_TESTS="${SMOOTHFFD_TESTS:-ON}")
 if command -v nvcc >/dev/null 2>&1; then
   extra+=(-DSMOOTHFFD_CUDA=ON -DCMAKE_CUDA_COMPILER="$(command -v nvcc)")
 fi

@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
-# The first thing to run: installs and builds (idempotent), builds the demo scenes in Blender,
+# The first thing to run: installs what the demo uses (the build tools, numpy, matplotlib and
+# Debian's Blender: `scripts/setup.sh --demo`, `scripts/setup_blender.sh --only blender-3.4`)
+# and builds the Python module (idempotent), builds the demo scenes in Blender,
 # renders them with Cycles on the CPU, puts the pictures side by side and exports the Smooth
 # FFD results as OBJ.
 #
 #   bash scripts/demo.sh [--no-setup] [--quick] [--docs] [scene ...]
 #
-#   --no-setup  skip scripts/setup.sh and scripts/setup_blender.sh (already installed)
+#   --no-setup  skip the set-up above (already installed and built)
 #   --quick     4 samples, 240x180 (a smoke run)
 #   --docs      also refresh the downscaled README pictures in docs/images/
 #   scene       any of: vase cube teapot suzanne chess knotbox (default: all)
@@ -24,7 +26,7 @@ for a in "$@"; do
         --no-setup) setup=0 ;;
         --quick) samples=4 size=240x180 ;;
         --docs) docs=(--docs docs/images) ;;
-        -h|--help) sed -n '2,16p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,18p' "$0"; exit 0 ;;
         -*) echo "demo.sh: unknown option $a" >&2; exit 2 ;;
         *) scenes+=("$a") ;;
     esac
@@ -33,8 +35,8 @@ done
 
 t_start=$SECONDS
 if [ "$setup" = 1 ]; then
-    bash scripts/setup.sh
-    bash scripts/setup_blender.sh
+    bash scripts/setup.sh --demo
+    bash scripts/setup_blender.sh --only blender-3.4
 fi
 t_setup=$((SECONDS - t_start))
 

@@ -2,8 +2,7 @@
 identity lattice, a 45-degree twist and a 40-degree bend (5x5x5 quadratic B-spline around the
 mesh, as `python3 -m smoothffd quality` makes it) at levels 1, 3 and 6, measured by
 smoothffd.metrics.quality. Prints a markdown table (one row per mesh and lattice) for
-docs/results.md (scripts/report.py puts it there, beside quality_corpus_before.json: the same
-measures of the core before issue 19's fixes); --json writes every measure.
+docs/results.md (scripts/report.py puts it there); --json writes every measure.
 
     PYTHONPATH=python /usr/bin/python3 scripts/quality_corpus.py [--json OUT.json]
 """

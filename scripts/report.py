@@ -311,9 +311,10 @@ def gpu_table():
     if not os.path.exists(path):
         return None
     text = open(path).read()
-    head = re.search(r"Run (.*?) on the lent .*?: (.*?),", text)
+    date = re.search(r"\*\*Full benchmark\*\* \((\d{4}-\d\d-\d\d)", text)
+    hw = re.search(r"^## GPU \((.*?)\)$", text, re.M)
     table = re.search(r"(\| case \|.*?\n)(?:\n|$)", text, re.S)
-    return (head.group(1) if head else "?", head.group(2) if head else "?",
+    return (date.group(1) if date else "?", hw.group(1) if hw else "?",
             table.group(1).strip() if table else None)
 
 
@@ -338,19 +339,11 @@ def git_rev():
 
 
 def real_meshes_section(after):
-    """docs/results.md's section on the real-mesh corpus (issue 19): scripts/quality_corpus.py's
-    table now, and the same measures of the core before the fixes (quality_corpus_before.json,
-    measured at commit 89bde3b with the same corpus and script)."""
-    import json
-
-    import quality_corpus as qc
-
-    with open(os.path.join(ROOT, "scripts", "quality_corpus_before.json")) as f:
-        before = json.load(f)
+    """docs/results.md's section on the real-mesh corpus: scripts/quality_corpus.py's table."""
     return [
-        "## Real meshes (issue 19)",
+        "## Real meshes",
         "",
-        "The paper's shapes come out clean; real assets did not. `tests/data/real/` holds a corpus "
+        "Real assets are harder than the paper's shapes. `tests/data/real/` holds a corpus "
         "of small real meshes (Blender primitives and Suzanne exported with their split normals, "
         "a lathe with sharp rims, a low-poly figure with flat non-planar quads and smooth parts, "
         "an OBJ with its own normals; see its README). `python3 -m smoothffd quality IN.obj` "
@@ -367,22 +360,17 @@ def real_meshes_section(after):
         "one, the shared crease curves within the flat face's plane); *volume change*: against "
         "the exact FFD of the flat input (closed meshes).",
         "",
-        "After (docs/algorithm.md: snapping the knot-plane cuts, adjustment normals and the "
-        "shading bound, knots anywhere):",
+        "What keeps these clean is in docs/algorithm.md: snapping the knot-plane cuts, the "
+        "adjustment normals and the shading bound, knots anywhere.",
         "",
         after,
         "",
-        "Before (the core at commit 89bde3b, the same corpus and script):",
-        "",
-        qc.table(before),
-        "",
-        "Suzanne's last reversed triangles (3 / 27 / 108 under the twist, 1 under the bend, "
-        "with the fold bound alone) all lay in one triangle of a strongly non-planar quad, its "
-        "normals 81-90 degrees from it: the deformation turned them past 90 degrees from the "
-        "triangle's own image. The shading bound (docs/algorithm.md) turns such normals toward "
-        "the geometry (18 corners of Suzanne; no other corpus mesh changes), so that no lattice "
-        "whose Jacobian has a condition number under 2 reverses a triangle. The sphere and cube "
-        "figures above did not change.",
+        "Suzanne has a strongly non-planar quad whose normals lie 81-90 degrees from one of its "
+        "triangles: with the fold bound alone, the deformation turns them past 90 degrees from "
+        "the triangle's own image (3 / 27 / 108 reversed triangles under the twist, 1 under the "
+        "bend). The shading bound (docs/algorithm.md) turns such normals toward the geometry (18 "
+        "corners of Suzanne; no other corpus mesh changes), so that no lattice whose Jacobian "
+        "has a condition number under 2 reverses a triangle.",
         "",
     ]
 

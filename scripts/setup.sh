@@ -1,13 +1,24 @@
 #!/usr/bin/env bash
 # Installs what the build and the tests need on Debian 12 (idempotent), then builds.
-# Usage: scripts/setup.sh            (apt packages + build)
+# Usage: scripts/setup.sh            (apt packages + build, unit tests included)
+#        scripts/setup.sh --demo     (only what scripts/demo.sh uses: the compilers, Eigen,
+#                                     pybind11, numpy and matplotlib; the CPU build of the
+#                                     Python module, without the unit tests or CUDA)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-# python3-venv: scripts/package.sh and the tests' fresh venvs; qemu-user: the wheels run under
-# emulated older CPUs (tests/test_isa.py); binutils: readelf/objdump for the artefact checks.
-need=(cmake g++ make binutils pybind11-dev libeigen3-dev python3-dev python3-venv python3-numpy
-      python3-pytest python3-matplotlib libgtest-dev clang libclang-rt-14-dev qemu-user)
+# The core and its Python module, and blender_scenes/composite.py's matplotlib.
+need=(cmake g++ make pybind11-dev libeigen3-dev python3-dev python3-numpy python3-matplotlib)
+if [ "${1:-}" = "--demo" ]; then
+  # The demo renders on the CPU: no CUDA backend (a later plain setup.sh adds it back where
+  # nvcc is found, and the unit tests).
+  export SMOOTHFFD_TESTS=OFF CMAKE_ARGS="${CMAKE_ARGS:-} -DSMOOTHFFD_CUDA=OFF"
+else
+  # python3-venv: scripts/package.sh and the tests' fresh venvs; qemu-user: the wheels run under
+  # emulated older CPUs (tests/test_isa.py); binutils: readelf/objdump for the artefact checks;
+  # clang and its runtime: the fuzzers.
+  need+=(binutils python3-venv python3-pytest libgtest-dev clang libclang-rt-14-dev qemu-user)
+fi
 missing=()
 for p in "${need[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")

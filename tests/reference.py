@@ -1,7 +1,7 @@
 """Independent plain-Python / numpy references for the smoothffd lattices.
 
-Written from the formulas (docs/api.md, ../shared/notes/reference-facts.md section 1 and 4,
-the paper's Eq. (1)), deliberately NOT from the core's code, so the tests in
+Written from the formulas (docs/api.md; docs/algorithm.md, "Blender's Lattice modifier,
+exactly" and "Normals under a deformation"; the paper's Eq. (1)), deliberately NOT from the core's code, so the tests in
 ``test_lattices.py`` compare two independent implementations.  Everything is float64 and
 deliberately slow and literal (scalar loops); keep point counts modest.
 
@@ -53,7 +53,7 @@ __all__ = [
 ]
 
 # ---------------------------------------------------------------------------------------------
-# (a) Blender's Lattice modifier (reference-facts section 1)
+# (a) Blender's Lattice modifier (docs/algorithm.md, "Blender's Lattice modifier, exactly")
 # ---------------------------------------------------------------------------------------------
 
 BLENDER_TYPES = ("LINEAR", "CARDINAL", "CATMULL_ROM", "BSPLINE")

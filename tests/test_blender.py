@@ -196,7 +196,7 @@ def _summary(out):
 
 @pytest.mark.parametrize("runner", RUNNERS)
 def test_update_timing_printed(runner, blender_env):
-    """The issue's timing table (printed, not asserted: speed is a benchmark's business): one
+    """The live-update timing table (printed, not asserted: speed is a benchmark's business): one
     live update of a 46.8k-triangle sphere at viewport levels 4 and 10 beside Lattice +
     Subdivision Surface levels 2 and 3, split into deform / mesh write / normals. Checks only
     that every row and both comparisons were measured; `pytest -s` shows the numbers."""

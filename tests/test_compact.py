@@ -5,7 +5,7 @@ The reference is the per-corner layout, computed by the other code path (each pa
 own normal to every corner of its triangles): positions must be bitwise the same, and every
 corner's normal equal to its render vertex's normal, exactly where the corner's patch is the
 render vertex's owner and within the plan's one normal class (well under a degree) elsewhere.
-The CUDA half runs where a GPU is (the lent H100)."""
+The CUDA half runs where a GPU is (e.g. an H100)."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""CUDA evaluator vs the CPU evaluator on the same plan (issue 3).
+"""CUDA evaluator vs the CPU evaluator on the same plan.
 
 Positions must agree to 1e-5 of the lattice size and normals to 1e-4 rad, for random
 lattices of several degrees, both lattice kinds, levels 1..16, meshes with sharp and smooth
@@ -262,8 +262,8 @@ def test_inline_global_mode(case):
 @pytest.mark.parametrize("path", PATHS)
 def test_tiny_knot_spans(path):
     """Knot spans too small for float positions (two spans of 1e-7 among spans of 0.2-0.5, also
-    with every knot shifted by 1e5): the plan carries each sample's local coordinate in its span
-    (issue 19), both paths read it and agree with the CPU; the fused path runs the inline
+    with every knot shifted by 1e5): the plan carries each sample's local coordinate in its span;
+    both paths read it and agree with the CPU; the fused path runs the inline
     kernel's global mode (its shared-memory modes place samples in float)."""
     rng = np.random.default_rng(19)
     inner = np.array([0.0, 0.3, 0.5, 0.5 + 1e-7, 0.5 + 2e-7, 1.0])

@@ -1,4 +1,4 @@
-"""CUDA optional at run time (issue "Install anywhere", item 3).
+"""CUDA optional at run time.
 
 The module `_core` needs no CUDA library: the CUDA backend is libsmoothffd_cuda.so next to it
 (CUDA runtime linked statically, cuBLAS loaded with dlopen for the "cublas" path only), loaded

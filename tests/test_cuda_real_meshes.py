@@ -1,14 +1,14 @@
-"""Issue 19 on CUDA: the real-mesh corpus (tests/data/real) through both CUDA paths.
+"""The real-mesh corpus (tests/data/real) on CUDA, through both CUDA paths.
 
 The plan does the geometry work (fold bound, shading bound, flat faces, clip snapping, local
 knot coordinates), the evaluators read it; these tests check that the GPU delivers what the
 CPU tests in test_real_meshes.py check there, on the same meshes and lattices:
 - both paths agree with the CPU evaluator on the same plan (positions to 1e-5 of the mesh's
   diagonal, each render vertex's normal to 1e-4 rad), every output element written;
-- the CUDA result has no reversed triangle (item 1), flat faces on the exact FFD of their flat
-  input (item 2), and a flat-shaded input comes back exactly at rest;
+- the CUDA result has no reversed triangle, flat faces on the exact FFD of their flat
+  input, and a flat-shaded input comes back exactly at rest;
 - shifting every knot (1e5, 1e7) leaves the CUDA output unchanged within float rounding, and
-  tiny knot spans stay accurate (item 4; those plans run the inline kernel's global mode).
+  tiny knot spans stay accurate (those plans run the inline kernel's global mode).
 
 Skipped (with the reason) where no usable CUDA device exists.
 """

@@ -1,4 +1,4 @@
-"""Regression tests for what the fuzzers of issue 22 found (docs/robustness.md, "Found and fixed").
+"""Regression tests for the edge cases the fuzzers reach (docs/robustness.md, "Edge cases the fuzzers reach").
 
 native/fuzz/fuzz_lattice_json.py, fuzz_cli.py and fuzz_bindings.py run in scripts/fuzz.sh; each
 case below is one of their findings, reduced.

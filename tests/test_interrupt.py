@@ -1,4 +1,4 @@
-"""Ctrl-C during long native work (issue 22): build_plan and CPU frames notice SIGINT.
+"""Ctrl-C during long native work: build_plan and CPU frames notice SIGINT.
 
 The core polls a cancel check (native/smoothffd/core/cancel.hpp) that the bindings install in
 the main thread: every 100 ms of work it takes the GIL and runs Python's signal handlers, so

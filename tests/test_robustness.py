@@ -1,4 +1,4 @@
-"""Robustness of the Python API (issue 6): unusual array layouts and dtypes, inputs left
+"""Robustness of the Python API: unusual array layouts and dtypes, inputs left
 untouched, concurrent use from several threads, memory limits refused with a clear message,
 the GIL released during native work, and OBJ reader regressions found by fuzzing.
 

@@ -1,4 +1,4 @@
-"""Blender-version differences, in one place (reference-facts sections 2 and 3).
+"""Blender-version differences, in one place (docs/addon.md, "Blender versions").
 
 Every other module asks this one instead of testing ``bpy.app.version`` itself, so a new
 Blender release means editing only this file.

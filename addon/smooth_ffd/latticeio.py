@@ -1,4 +1,4 @@
-"""Reads a Blender lattice object into the core's BlenderLattice (reference-facts section 1)."""
+"""Reads a Blender lattice object into the core's BlenderLattice (docs/algorithm.md, "Blender's Lattice modifier, exactly")."""
 import numpy as np
 
 from . import inputs
@@ -85,7 +85,7 @@ _rest_cache = {}   # lattice name -> (shape, rest): edit mode hides the rest pos
 
 def _rest_points(data, shape):
     """LatticePoint.co, the rest positions (never derived from the ranges: old or resized
-    lattices differ, see reference-facts). In edit mode co is garbage (the edit lattice has
+    lattices differ: docs/algorithm.md, "Blender's Lattice modifier, exactly"). In edit mode co is garbage (the edit lattice has
     no rest layout), so the last object-mode reading is used, else Blender's default."""
     count = shape[0] * shape[1] * shape[2]
     if not data.is_editmode:

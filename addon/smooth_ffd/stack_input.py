@@ -1,4 +1,4 @@
-"""The stack's geometry as a Smooth FFD modifier's input (issue 18, item 1): what Blender's own
+"""The stack's geometry as a Smooth FFD modifier's input: what Blender's own
 Lattice modifier at the same position would deform, when modifiers or shape keys sit above.
 
 Python cannot read a Geometry Nodes modifier's input, so the add-on reads it where Blender

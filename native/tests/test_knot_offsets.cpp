@@ -1,4 +1,4 @@
-// B-spline knots that do not start at 0 (issue 22, found by fuzz_plan): the float tables of
+// B-spline knots that do not start at 0 (a case fuzz_plan generates): the float tables of
 // the plan measure such an axis's parameter from its first knot plane, so a lattice whose knots
 // sit at 2^20 + [0, 1] deforms as the same lattice at [0, 1]; ordinary lattices keep their
 // tables bit for bit.

@@ -1,4 +1,4 @@
-// Samples' local coordinates (Plan::sample_local, issue 19 item 4): where the evaluators' float
+// Samples' local coordinates (Plan::sample_local): where the evaluators' float
 // arithmetic cannot place a sample within its knot span, the plan gives each sample its
 // coordinate t in its span, computed in double; ordinary lattices keep t from the position
 // (no table, bitwise the frames of before).

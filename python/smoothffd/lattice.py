@@ -195,7 +195,7 @@ class BSplineLattice(_Lattice):
 
 
 class BlenderLattice(_Lattice):
-    """Exactly what Blender's Lattice modifier computes (reference-facts section 1).
+    """Exactly what Blender's Lattice modifier computes (docs/algorithm.md, "Blender's Lattice modifier, exactly").
 
     rest_points / points: (nu, nv, nw, 3) in lattice space (LatticePoint.co / co_deform, or
     the evaluated lattice's points), index [u, v, w]. interpolation: per axis LINEAR,

@@ -1,4 +1,4 @@
-"""Linked and overridden data (issue 18, item 3).
+"""Linked and overridden data.
 
 A library file holds a character: Suzanne with a Smooth FFD modifier, its lattice (a point
 animated over frames 1-4, so every result belongs to one frame) and a twin with Blender's own

@@ -1,4 +1,4 @@
-"""Robustness of the live add-on (issue 6, Blender side), the cases check_live.py does not
+"""Robustness of the live add-on (Blender side), the cases check_live.py does not
 cover: deleting the deformed object, renaming the object / lattice / modifier, linking the
 object into another scene, and edits or frame changes requested while a render runs.
 

@@ -1,4 +1,4 @@
-"""Smooth FFD as a modifier among modifiers (issue 18, items 4 and 5).
+"""Smooth FFD as a modifier among modifiers: the bake, a file without the add-on, lattice deletion, hidden objects, renames, Lock Interface.
 
 - Bake: frames baked into the file render right in a Blender without the add-on (a second
   process, `blender -b --factory-startup` on 3.4, a bpy process that never imports the add-on

@@ -1,4 +1,4 @@
-"""The stack's geometry as Smooth FFD's input (issue 18, item 1), against Blender's own Lattice
+"""The stack's geometry as Smooth FFD's input, against Blender's own Lattice
 modifier at the same position (an object B with the same stack and Lattice where A has Smooth
 FFD): the first V output vertices within 1e-5 of the lattice size, on every frame of a short
 animation.

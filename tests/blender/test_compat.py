@@ -1,6 +1,6 @@
 """Unit tests of addon/smooth_ffd/compat.py's node-socket paths without Blender: compat.py is
 loaded with a fake `bpy` whose app.version picks the branch, and driven with small fakes that
-behave like each API generation (reference-facts section 3):
+behave like each API generation (docs/addon.md, "Blender versions"):
 
 * 3.4-3.6: group sockets in NodeTree.inputs/outputs (identifiers "Input_N"), modifier inputs
   are ID properties: mod["Input_N"];

@@ -43,8 +43,8 @@ SFFD_HD float length(V3 a) { return sqrtf(dot(a, a)); }
 SFFD_HD V3 normalized_or(V3 a, V3 fallback) {
   float l2 = dot(a, a);
   if (!(l2 > 1e-30f)) return fallback;
-  // Robustness (issue 6): |a| above ~1.8e19 overflows l2 to inf, and 0 * inf made the result
-  // NaN (a lattice scaled by 1e20 gave NaN positions). Rescale finite vectors first; a vector
+  // Robustness: |a| above ~1.8e19 overflows l2 to inf, and 0 * inf would make the result
+  // NaN (a lattice scaled by 1e20 would give NaN positions). Rescale finite vectors first; a vector
   // with an inf or NaN component has no direction: fallback.
   if (!(l2 <= 3.0e38f)) {
     float m = fmaxf(fabsf(a.x), fmaxf(fabsf(a.y), fabsf(a.z)));

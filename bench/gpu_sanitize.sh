@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # compute-sanitizer memcheck and racecheck on the GPU tests' sanitizer subset (both paths,
-# every inline mode); needs a build on the device first (bench/device_run.sh's build step).
+# every inline mode); needs a build on the GPU machine first (`STEPS=build bash bench/gpu_run.sh`).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-/tmp/sffd-out}; mkdir -p "$OUT"

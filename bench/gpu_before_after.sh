@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
-# A session's closing device calls: the GPU tests and the full benchmark before and after, in
-# the same call, on two git archives (the working tree may hold others' unfinished work).
+# A change's GPU check, before and after, on one machine with an NVIDIA GPU and CUDA 13: the
+# GPU tests and the full benchmark on two source trees in one run (the floor moves a few per
+# cent between runs, so compare only within one).
 #   rm -rf ab_ref ab_new && mkdir ab_ref ab_new
 #   git archive <before> native python/smoothffd CMakeLists.txt scripts bench tests | tar -x -C ab_ref
 #   git archive HEAD     native python/smoothffd CMakeLists.txt scripts bench tests | tar -x -C ab_new
-#   run(command="PART=tests bash bench/before_after.sh", carry=[".carry", "ab_ref", "ab_new"])
-#   run(command="PART=bench bash bench/before_after.sh", carry=[".carry", "ab_ref", "ab_new"])
+#   PART=tests bash bench/gpu_before_after.sh
+#   PART=bench bash bench/gpu_before_after.sh
 # PART=gpu: the GPU tests in both trees and memcheck in ab_new (fits a 10-minute call on a
 #   fresh machine). PART=tests: the GPU tests in both trees, the whole non-Blender suite and compute-sanitizer's
 #   memcheck in ab_new, and bench/bench_deliver.py (the frame into numpy) in ab_new.
@@ -16,8 +17,8 @@ set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-/tmp/sffd-out}; mkdir -p "$OUT"
 export PATH="$PATH:/usr/local/cuda/bin" PYTHONUNBUFFERED=1
-if [ -d .carry/eigen3 ]; then
-  cp -r .carry/eigen3 /usr/include/ && mkdir -p /usr/share/eigen3/cmake && cp .carry/eigen3-cmake/* /usr/share/eigen3/cmake/
+if [ -n "${EIGEN_COPY:-}" ]; then  # Eigen copied in, on a machine without libeigen3-dev
+  cp -r "$EIGEN_COPY/eigen3" /usr/include/ && mkdir -p /usr/share/eigen3/cmake && cp "$EIGEN_COPY"/eigen3-cmake/* /usr/share/eigen3/cmake/
 fi
 { date -u; nvidia-smi --query-gpu=name,driver_version --format=csv,noheader; } | tee "$OUT/env.txt"
 for tree in ab_ref ab_new; do

@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
-# One call on the lent GPU machine: build, GPU tests, compute-sanitizer, benchmark.
-#   run(command="bash bench/device_run.sh", carry=[".carry"])
+# On a machine with an NVIDIA GPU and CUDA 13 (nvcc, compute-sanitizer on PATH or in
+# /usr/local/cuda/bin): build, GPU tests, compute-sanitizer, benchmark.
+#   bash bench/gpu_run.sh
 # STEPS (env) picks a subset: "build test sanitize bench" (default: all); PYTEST_X= runs every
 # test instead of stopping at the first failure; ARCH_ARG, extra CMake
-# arguments (bench/ab_device.sh sets it from ARCHS). Logs under $OUT.
+# arguments (bench/gpu_ab.sh sets it from ARCHS); EIGEN_COPY, a folder with eigen3/ and
+# eigen3-cmake/, installs Eigen on a machine without libeigen3-dev. Logs under $OUT.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-/tmp/sffd-out}
@@ -15,8 +17,8 @@ has() { [[ " $STEPS " == *" $1 "* ]]; }
 { date -u; nvidia-smi --query-gpu=name,driver_version,clocks.sm,clocks.mem,memory.used --format=csv; nvcc --version | tail -1; } > "$OUT/env.txt" 2>&1
 cat "$OUT/env.txt"
 if has build; then
-  if [ -d .carry/eigen3 ]; then
-    cp -r .carry/eigen3 /usr/include/ && mkdir -p /usr/share/eigen3/cmake && cp .carry/eigen3-cmake/* /usr/share/eigen3/cmake/
+  if [ -n "${EIGEN_COPY:-}" ]; then  # Eigen copied in, on a machine without libeigen3-dev
+    cp -r "$EIGEN_COPY/eigen3" /usr/include/ && mkdir -p /usr/share/eigen3/cmake && cp "$EIGEN_COPY"/eigen3-cmake/* /usr/share/eigen3/cmake/
   fi
   t0=$(date +%s)
   BUILD_DIR=/tmp/sffd-build PYTHON="$(command -v python3)" CMAKE_ARGS="-DSMOOTHFFD_TESTS=OFF ${ARCH_ARG:-}" bash scripts/build.sh > "$OUT/build.log" 2>&1

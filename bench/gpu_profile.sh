@@ -1,16 +1,17 @@
 #!/usr/bin/env bash
-# One device call: build, the GPU tests, the quick benchmark (W1 L=10), then Nsight Compute
-# on the inline kernel at L=10 (SASS-level counters, tarred with the details page).
-#   run(command="bash bench/profile_device.sh", carry=[".carry"], kind="nvidia-h100-x1")
-# SANITIZE=1 adds memcheck + racecheck (bench/sanitize_device.sh); SKIP_NCU=1 leaves the profile out; LEVELS="10 4" picks the profiled levels.
+# On a machine with an NVIDIA GPU, CUDA 13 and Nsight Compute (ncu): build, the GPU tests, the
+# quick benchmark (W1 L=10), then Nsight Compute on the inline kernel at L=10 (SASS-level
+# counters, tarred with the details page).
+#   bash bench/gpu_profile.sh
+# SANITIZE=1 adds memcheck + racecheck (bench/gpu_sanitize.sh); SKIP_NCU=1 leaves the profile out; LEVELS="10 4" picks the profiled levels.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-/tmp/sffd-out}; mkdir -p "$OUT"
-STEPS=${STEPS:-"build test bench"} BENCH_ARGS=${BENCH_ARGS:-"--iters 100 --quick"} bash bench/device_run.sh 2>&1 | grep -v "^ *Function\|REG:" | tail -40
+STEPS=${STEPS:-"build test bench"} BENCH_ARGS=${BENCH_ARGS:-"--iters 100 --quick"} bash bench/gpu_run.sh 2>&1 | grep -v "^ *Function\|REG:" | tail -40
 export PATH="$PATH:/usr/local/cuda/bin" PYTHONPATH="$PWD/python"
 # Spills a function (local loads/stores in the SASS), for the k_inline instances.
 cuobjdump --dump-sass python/smoothffd/libsmoothffd_cuda.so 2>/dev/null | awk '/Function : /{f=$3} /STL|LDL/{n[f]++} END{for (k in n) print n[k], k}' | grep k_inline | sed 's/EEEvNS_8PlanView.*//'
-[ "${SANITIZE:-0}" = 1 ] && bash bench/sanitize_device.sh
+[ "${SANITIZE:-0}" = 1 ] && bash bench/gpu_sanitize.sh
 [ "${SKIP_NCU:-0}" = 1 ] && exit 0
 mkdir -p /tmp/prof && cd /tmp/prof
 for L in ${LEVELS:-10}; do

@@ -103,15 +103,13 @@ class WorkerPool {
     }
   }
 
-  // cv.wait(lock, ready) through wait_for: condition_variable::wait is a libstdc++ symbol of
-  // GCC 12 (GLIBCXX_3.4.30), newer than the wheels' manylinux_2_34 allows; wait_for is inline
-  // over pthread_cond_clockwait (glibc 2.34). What ready() reads changes under the mutex (or,
-  // done_, before a change under it) and is then notified, so no wake-up is lost and the
-  // timeout only bounds a wait; it is long, so that idle workers do not wake.
+  // Sleeps until ready(). What ready() reads changes under the mutex (or, done_, before a
+  // change under it) and is then notified, so no wake-up is lost. A plain wait: no clock is
+  // read (a timed wait would need glibc 2.30's pthread_cond_clockwait, newer than the
+  // libraries' glibc 2.28).
   template <class Ready>
   static void wait(std::condition_variable& cv, std::unique_lock<std::mutex>& lock, const Ready& ready) {
-    while (!cv.wait_for(lock, std::chrono::seconds(60), ready)) {
-    }
+    cv.wait(lock, ready);
   }
 
   // Takes chunks until none is left.

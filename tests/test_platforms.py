@@ -3,8 +3,10 @@ wherever this Linux x86-64 machine can, and checked without running where it can
 
 * Windows x64: each wheel for CPython 3.10, 3.11 and 3.12 installed into a Windows CPython
   (PyPI's QEnvPython3XY) under Wine, with numpy 1.26.4 for win_amd64 and pytest; the core's
-  suites run there from the installed wheel. CPython 3.13's wheel has no Windows interpreter
-  here: every name it imports from python313.dll is one that 3.13's headers declare.
+  suites run there from the installed wheel. The Windows extension zip installed into PyPI's
+  bpy 4.2 for Windows (Blender as a module) under Wine, from disk and from dist/repository,
+  and a modifier works. CPython 3.13's wheel has no Windows interpreter here: every name it
+  imports from python313.dll is one that 3.13's headers declare.
 * Linux aarch64: the cp311 wheel installed into Debian 12's arm64 Python 3.11 (its own numpy
   and pytest) under qemu-aarch64; a bounded subset of the core's suites runs there (emulation
   is about 20 times slower), chosen so that every aarch64-specific path runs: the module's
@@ -134,7 +136,7 @@ def _wine(py, args, site, cwd, timeout):
                PYTHONDONTWRITEBYTECODE="1", PYTHONUTF8="1")
     env.pop("PYTHONHOME", None)
     return subprocess.run([WINE, str(py / "python.exe"), *args], cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=timeout)
+                          text=True, timeout=timeout, stdin=subprocess.DEVNULL)
 
 
 @pytest.mark.parametrize("tag", ["310", "311", "312"])
@@ -163,6 +165,50 @@ def test_windows_core_suites_under_wine(tmp_path):
     assert r.returncode == 0, tail
     assert re.search(r"\d+ passed", r.stdout), tail
     print(tail.strip().splitlines()[-1])
+
+
+def _bpy_under_wine(script, arg, tmp_path):
+    """Runs tests/blender/`script` `arg` in PyPI's bpy 4.2 for Windows (Blender as a Python
+    module, CPython 3.11) under Wine, in a private Blender profile."""
+    py = _windows_python("311")
+    bpy_dir = CACHE / "windows" / "bpy-4.2"
+    if not (bpy_dir / ".complete").exists():
+        _missing(f"bpy 4.2 for Windows ({bpy_dir})")
+    win = lambda p: "Z:" + str(p).replace("/", "\\")
+    profile = tmp_path / "profile"
+    env = dict(os.environ, WINEPREFIX=str(CACHE / "wine-prefix"), WINEDEBUG="-all", PYTHONPATH=win(bpy_dir),
+               PYTHONDONTWRITEBYTECODE="1", BLENDER_USER_RESOURCES=win(profile),
+               BLENDER_USER_SCRIPTS=win(profile / "scripts"), BLENDER_USER_CONFIG=win(profile / "config"),
+               BLENDER_USER_EXTENSIONS=win(profile / "extensions"))
+    r = subprocess.run([WINE, str(py / "python.exe"), str(ROOT / "tests" / "blender" / script), str(arg)],
+                       cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900,
+                       stdin=subprocess.DEVNULL)
+    out = r.stdout + r.stderr
+    assert r.returncode == 0 and " passed, 0 failed" in out, out[-3000:]
+    assert "FAIL" not in r.stdout, out[-3000:]
+
+
+def _version():
+    return re.search(r'__version__ = "(.*)"', (ROOT / "python" / "smoothffd" / "__init__.py").read_text()).group(1)
+
+
+def test_windows_extension_in_blender_under_wine(tmp_path):
+    """The Windows extension zip installed into Blender for Windows (bpy 4.2) as *Install from
+    Disk* does; the add-on runs its bundled core (the cp311 win_amd64 wheel, which Blender
+    unpacks into the extension's site-packages) and a Smooth FFD modifier works."""
+    ext = DIST / f"smooth_ffd-{_version()}-windows_x64.zip"
+    if not ext.exists():
+        _missing(f"dist/{ext.name}")
+    _bpy_under_wine("check_install.py", ext, tmp_path)
+
+
+def test_windows_repository_in_blender_under_wine(tmp_path):
+    """dist/repository added to Blender for Windows as a remote repository (file:///Z:/...),
+    synced, and the add-on installed from it: Blender picks the windows_x64 zip."""
+    repo = DIST / "repository"
+    if not (repo / "index.json").exists():
+        _missing("dist/repository/index.json")
+    _bpy_under_wine("check_repository.py", repo, tmp_path)
 
 
 def _pe_imports(path):
@@ -236,7 +282,7 @@ def _qemu(root, args, site, cwd, timeout):
     wrapper.write_text(f'#!/bin/sh\nexec qemu-aarch64 -L {root} -0 "$0" {root}/usr/bin/python3.11 "$@"\n')
     wrapper.chmod(0o755)
     return subprocess.run([str(wrapper), *args], cwd=cwd, env=env, capture_output=True, text=True,
-                          timeout=timeout)
+                          timeout=timeout, stdin=subprocess.DEVNULL)
 
 
 def test_arm64_wheel_under_qemu(tmp_path):

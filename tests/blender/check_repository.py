@@ -5,6 +5,7 @@ zip from the repository's index.json. Then the checks of check_install.py. Argum
 repository folder. Run with BLENDER_USER_* pointing at a temporary folder (tests/test_blender.py
 does)."""
 import os
+import pathlib
 import sys
 
 import bpy
@@ -15,7 +16,7 @@ from check_install import installed_checks, report  # noqa: E402
 
 def main():
     repo_dir = sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv else sys.argv[1]
-    url = "file://" + os.path.join(os.path.abspath(repo_dir), "index.json")
+    url = pathlib.Path(os.path.abspath(repo_dir), "index.json").as_uri()   # file:///... on every system
     repos = bpy.context.preferences.extensions.repos
     r_add = bpy.ops.preferences.extension_repo_add(name="Studio", remote_url=url, type='REMOTE')
     index = next((i for i, r in enumerate(repos) if r.remote_url == url), None)

@@ -349,6 +349,58 @@ def test_bom_keeps_the_first_vertex(tmp_path):
     assert d.corner_vertices.tolist() == [0, 1, 2]
 
 
+_UV_TRIANGLE = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n"
+
+
+@pytest.mark.parametrize("encoding,bom", [
+    ("utf-16-le", b"\xff\xfe"), ("utf-16-be", b"\xfe\xff"),
+    ("utf-32-le", b"\xff\xfe\x00\x00"), ("utf-32-be", b"\x00\x00\xfe\xff"),
+    ("utf-8", b"\xef\xbb\xbf")])
+@pytest.mark.parametrize("suffix", [".obj", ".obj.gz"])
+def test_unicode_text_with_a_byte_order_mark_is_read(tmp_path, encoding, bom, suffix):
+    """UTF-16 and UTF-32 files as Windows tools save them (a byte order mark first) read as
+    their UTF-8 twin: it used to be 'the mesh has no vertices' (every line a NUL-spaced
+    unknown keyword)."""
+    want = sio.read_obj(_write_bytes(tmp_path / f"plain{suffix}", _UV_TRIANGLE.encode()))
+    got = sio.read_obj(_write_bytes(tmp_path / f"bom{suffix}", bom + _UV_TRIANGLE.encode(encoding)))
+    for f in ("positions", "corner_vertices", "face_offsets", "uvs"):
+        assert np.array_equal(getattr(got, f), getattr(want, f)), f
+
+
+@pytest.mark.parametrize("data,line", [
+    (_UV_TRIANGLE.encode("utf-16-le"), 1),              # UTF-16 without its byte order mark
+    (_UV_TRIANGLE.encode("utf-32-be"), 1),
+    (b"v 0 0 0\nv 1 0 0\nv 0 1 0\x00\nf 1 2 3\n", 3),  # a NUL byte in UTF-8 text
+])
+def test_nul_characters_are_refused_naming_the_encoding(tmp_path, data, line):
+    with pytest.raises(ValueError, match=rf"nul\.obj:{line}: NUL character in UTF-8 text: UTF-16 or "
+                                         r"UTF-32 without a byte order mark, or not a text file"):
+        sio.read_obj(_write_bytes(tmp_path / "nul.obj", data))
+
+
+@pytest.mark.parametrize("text,needle", [
+    ("v 3.1+e2 0 0\n", ":1: non-numeric vertex value '3.1+e2' (an exponent's sign follows the e: 3.1e+2)"),
+    ("v 0 0 0\nvn 0 0 -1.5-E3\n", ":2: non-numeric normal value '-1.5-E3' (an exponent's sign follows the e: -1.5E-3)"),
+    ("vt .5+e1 0\n", ":1: non-numeric texture coordinate value '.5+e1' (an exponent's sign follows the e: .5e+1)"),
+])
+def test_exponent_sign_before_the_e_is_refused_with_the_spelling_meant(tmp_path, text, needle):
+    """Blender's importer reads "v 3.1+e2 5 6" as (3.1, 0, 0): its number parser stops at the
+    "+", and the rest of the line parses as nothing, which it turns into zeros. A silently
+    different mesh; refused here instead, naming the spelling that was probably meant."""
+    p = tmp_path / "exp.obj"
+    p.write_text(text + "v 1 0 0\nv 0 1 0\nf 1 2 3\n", encoding="utf-8")
+    with pytest.raises(ValueError, match=re.escape(needle)):
+        sio.read_obj(p)
+
+
+def _write_bytes(path, data):
+    if str(path).endswith(".gz"):
+        import gzip
+        data = gzip.compress(data)
+    path.write_bytes(data)
+    return path
+
+
 @pytest.mark.parametrize("name,needle", [
     ("index 3-", "non-integer index in face corner '3-'"),
     ("index 4-1", "non-integer index in face corner '4-1'"),

@@ -10,6 +10,7 @@ Writing is vectorized: the whole file is produced by a few large ``%``-format ca
 """
 from __future__ import annotations
 
+import codecs
 import contextlib
 import gzip
 import io as stdio
@@ -55,9 +56,10 @@ class ObjData(NamedTuple):
 
 
 def _open(path, mode, **kw):
-    """Text file, gzip-compressed when the name ends with .gz (large results shrink ~4x)."""
+    """A file (text unless mode has "b"), gzip-compressed when the name ends with .gz (large
+    results shrink ~4x)."""
     if path.endswith(".gz"):  # level 6: most of level 9's ratio at a fraction of its time
-        return gzip.open(path, mode + "t", compresslevel=6, **kw)
+        return gzip.open(path, mode if "b" in mode else mode + "t", compresslevel=6, **kw)
     return open(path, mode, **kw)
 
 
@@ -155,8 +157,13 @@ def _floats(tokens, lines, per_line, path, what):
         return np.zeros((0, per_line))
     if not _NUMBERS.fullmatch(" ".join(tokens)):
         i = next(i for i, tok in enumerate(tokens) if not _NUMBER.fullmatch(tok))
-        kind = "non-finite" if tokens[i].lower().lstrip("+-") in ("inf", "infinity", "nan") else "non-numeric"
-        raise _error(path, lines[i // per_line], f"{kind} {what} value {_show(tokens[i])}")
+        tok = tokens[i]
+        kind = "non-finite" if tok.lower().lstrip("+-") in ("inf", "infinity", "nan") else "non-numeric"
+        msg = f"{kind} {what} value {_show(tok)}"
+        if _MISPLACED_SIGN.fullmatch(tok):
+            e = tok.lower().index("e")
+            msg += f" (an exponent's sign follows the e: {tok[:e - 1]}{tok[e]}{tok[e - 1]}{tok[e + 1:]})"
+        raise _error(path, lines[i // per_line], msg)
     arr = np.array(tokens, dtype=np.float64)
     bad = ~np.isfinite(arr)
     if bad.any():
@@ -255,12 +262,11 @@ def read_obj(path) -> ObjData:
     """
     path = os.fspath(path)
     try:
-        with _open(path, "r", encoding="utf-8", errors="replace") as fh:
-            text = fh.read()
+        with _open(path, "rb") as fh:
+            raw = fh.read()
     except (EOFError, gzip.BadGzipFile, zlib.error) as e:
         raise ValueError(f"{path}: damaged or truncated gzip file ({e})") from None
-    if text.startswith("\ufeff"):  # a UTF-8 byte order mark is not part of the first line
-        text = text[1:]
+    text = _decode(raw, path)
     # Two readers: a vectorized one for the common, clean case, and a line-by-line one that
     # handles every oddity and names the line of an error. The fast one gives up (None) on
     # anything unusual, so both always agree.
@@ -268,6 +274,36 @@ def read_obj(path) -> ObjData:
     if data is None:
         data = _read_slow(text, path)
     return data
+
+
+# Byte order marks: the encoding they name, longest first (UTF-32 LE's starts like UTF-16 LE's).
+_BOMS = ((codecs.BOM_UTF32_LE, "utf-32-le"), (codecs.BOM_UTF32_BE, "utf-32-be"),
+         (codecs.BOM_UTF8, "utf-8"), (codecs.BOM_UTF16_LE, "utf-16-le"),
+         (codecs.BOM_UTF16_BE, "utf-16-be"))
+
+
+def _decode(raw, path):
+    """The file's text: UTF-8, or what a byte order mark names (UTF-8, UTF-16 or UTF-32, as
+    Windows tools write them); the mark is not part of the first line. Bytes that do not
+    decode become U+FFFD (they can only matter in names and comments: numbers are ASCII). A
+    NUL character is refused by name: it is what UTF-16 or UTF-32 text without a byte order
+    mark, or a file that is not text at all, looks like when read as UTF-8."""
+    encoding = "utf-8"
+    for bom, name in _BOMS:
+        if raw.startswith(bom):
+            raw, encoding = raw[len(bom):], name
+            break
+    text = raw.decode(encoding, errors="replace")
+    nul = text.find("\0")
+    if nul >= 0:
+        line = len(_lines(text[:nul]))
+        raise _error(path, line, f"NUL character in {encoding.upper()} text: UTF-16 or UTF-32 "
+                     "without a byte order mark, or not a text file (save it as UTF-8)")
+    return text
+
+
+# A number with its exponent's sign before the "e" ("3.1+e2" for 3.1e+2).
+_MISPLACED_SIGN = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)[+-][eE][0-9]+")
 
 
 # Lines the regexes of the fast path would skip silently: indented lines and bare keywords.

@@ -141,7 +141,7 @@ def test_forward_references_allowed(tmp_path):
         ("v 0 0\n", 1, "3 coordinates"),
         ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", 4, "index 0"),
         ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf -4 1 2\n", 4, "vertex index -4 .* out of range"),
-        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1/1 2/1 3/1\n", 5, "texture coordinate index 1"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1 2 3\nf 1/1 2/2 3/1\n", 6, "texture coordinate index 2"),
         ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\n# c\nf 1//1 2//2 3//1\n", 6, "normal index 2"),
         ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 a\n", 4, "non-integer index"),
         ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3/4/5/6\n", 4, "malformed face corner"),
@@ -416,10 +416,44 @@ def test_strict_syntax_refused_with_the_line(tmp_path, name, needle):
         sio.read_obj(p)
 
 
-def test_form_feed_line_is_an_unknown_keyword(tmp_path):
+def test_control_characters_separate_tokens_as_in_blender(tmp_path):
+    """Blender's importer takes every ASCII control character as a blank: "\fv 5 5 5" is a
+    vertex there. Ignored here as an unknown keyword "\fv", it shifted every later vertex's
+    index by one without a word."""
     p = tmp_path / "ff.obj"
     p.write_text(_ODD["form feed before v"], encoding="utf-8")
-    assert len(sio.read_obj(p).positions) == 3   # "\fv" is not "v": ignored, as by both readers
+    assert sio.read_obj(p).positions.tolist() == [[0, 0, 0], [1, 0, 0], [0, 1, 0], [5, 5, 5]]
+    p.write_text("v 0 0 0\nv 1\x0b0\x1f0\nv\x010 1 0\x0c\nf\t1 2\x1e3\n", encoding="utf-8")
+    d = sio.read_obj(p)
+    assert d.positions.tolist() == [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
+    assert d.corner_vertices.tolist() == [0, 1, 2]
+
+
+def test_backslash_continues_a_line(tmp_path):
+    """The OBJ specification's line continuation, which Blender's importer follows; later
+    lines keep their numbers in error messages."""
+    p = tmp_path / "cont.obj"
+    p.write_bytes(b"v 0 0 0\nv 1 0 \\\n0\r\nv 0 1 0\nf 1 \\\r\n2 \\\n3\n")
+    d = sio.read_obj(p)
+    assert d.positions.tolist() == [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
+    assert d.corner_vertices.tolist() == [0, 1, 2] and d.face_offsets.tolist() == [0, 3]
+    p.write_bytes(b"v 0 0 0\nv 1 0 \\\n0\nv 0 1 0\nv x 0 0\n")
+    with pytest.raises(ValueError, match=r"cont\.obj:5: non-numeric vertex value 'x'"):
+        sio.read_obj(p)
+
+
+@pytest.mark.parametrize("corners,what", [("1//1 2//1 3//1", "normals"),
+                                          ("1/1 2/2 3/3", "texture coordinates"),
+                                          ("1/1/1 2/2/2 3/3/3", "texture coordinates")])
+def test_indices_of_elements_the_file_lacks_are_ignored(tmp_path, corners, what):
+    """Some exporters write "f 1//1" with no vn in the file; Blender's importer ignores such
+    indices, and so does this reader, with a warning (they were an out-of-range error)."""
+    p = tmp_path / "lacks.obj"
+    p.write_text(f"v 0 0 0\nv 1 0 0\nv 0 1 0\nf {corners}\n", encoding="utf-8")
+    with pytest.warns(UserWarning, match=f"face corners refer to {what}, but the file defines none"):
+        d = sio.read_obj(p)
+    assert d.corner_vertices.tolist() == [0, 1, 2]
+    assert d.corner_normals is None and d.uvs is None
 
 
 def test_long_bad_number_is_not_echoed_whole(tmp_path):

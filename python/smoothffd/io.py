@@ -100,15 +100,19 @@ def _error(path, lineno, msg):
     return ValueError(f"{path}:{lineno}: {msg}")
 
 
-# One grammar for both readers: lines end at \n, \r\n or \r; tokens are separated by spaces and
-# tabs; a number is ASCII decimal notation (no "1_000", no other scripts' digits, no "inf" or
+# One grammar for both readers: lines end at \n, \r\n or \r, and a backslash at the end of a
+# line continues it on the next; tokens are separated by spaces, tabs and the other ASCII
+# control characters but NUL (a form feed, say: Blender's importer separates tokens by all of
+# them); a number is ASCII decimal notation (no "1_000", no other scripts' digits, no "inf" or
 # "nan"); an index is an ASCII integer, optionally negative.
 _NUM = r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
 _NUMBERS = re.compile(rf"(?:{_NUM}(?: {_NUM})*)?")
 _NUMBER = re.compile(_NUM)
 _INTEGERS = re.compile(r"(?:-?[0-9]+(?: -?[0-9]+)*)?")
 _INTEGER = re.compile(r"-?[0-9]+")
-_BLANKS = re.compile(r"[ \t]+")
+_BLANK = " " + "".join(map(chr, range(1, 0x20))).replace("\n", "").replace("\r", "")
+_BLANKS = re.compile(f"[{re.escape(_BLANK)}]+")
+_CONTINUED = re.compile(r"(?:[^\n]*\\\n)+[^\n]*")
 # The fast reader takes printable ASCII, tabs and newlines only (and no "_"); anything else goes
 # to the slow reader, which applies the grammar above token by token.
 _PLAIN = bytes(range(0x20, 0x7f)).replace(b"_", b"") + b"\t\n"
@@ -129,8 +133,18 @@ def _lines(text):
 
 
 def _tokens(line):
-    line = line.strip(" \t")
+    line = line.strip(_BLANK)
     return _BLANKS.split(line) if line else []
+
+
+def _join_continued(text):
+    """Lines ending in a backslash joined with the next (the backslash and the line end become
+    a blank); as many empty lines follow a joined line as it absorbed, so later lines keep
+    their numbers in error messages."""
+    if "\\\n" not in text and "\\\r" not in text:
+        return text
+    text = text.replace("\r\n", "\n").replace("\r", "\n")
+    return _CONTINUED.sub(lambda m: m[0].replace("\\\n", " ") + "\n" * m[0].count("\\\n"), text)
 
 
 def _tokens_per_line_are(lines, n):
@@ -259,6 +273,8 @@ def read_obj(path) -> ObjData:
 
     Mixed files: if only some corners have ``vn``, normals are dropped (``None``, so the core
     computes smooth ones) with a warning; if only some have ``vt``, the others get UV (0, 0).
+    ``vt`` or ``vn`` indices in a file that defines no ``vt`` or no ``vn`` are ignored, with a
+    warning (as Blender's importer ignores them).
     """
     path = os.fspath(path)
     try:
@@ -266,7 +282,7 @@ def read_obj(path) -> ObjData:
             raw = fh.read()
     except (EOFError, gzip.BadGzipFile, zlib.error) as e:
         raise ValueError(f"{path}: damaged or truncated gzip file ({e})") from None
-    text = _decode(raw, path)
+    text = _join_continued(_decode(raw, path))
     # Two readers: a vectorized one for the common, clean case, and a line-by-line one that
     # handles every oddity and names the line of an error. The fast one gives up (None) on
     # anything unusual, so both always agree.
@@ -465,6 +481,13 @@ def _read_slow(text, path):
         c = int(np.flatnonzero(~present[:, 0])[0])
         raise _error(path, corner_line(c),
                      f"vertex index 0 in corner {toks[c]!r} (OBJ indices start at 1)")
+    for s in (1, 2):
+        # Texture coordinate or normal indices in a file that defines none are ignored, as
+        # Blender's importer ignores them (exporters that write "f 1//1" regardless exist).
+        if totals[s] == 0 and present[:, s].any():
+            warnings.warn(f"{path}: face corners refer to {names[s]}s, but the file defines "
+                          f"none; ignoring those indices")
+            present[:, s] = False
     for s in range(3):
         so_far = counts[s][corner_face]
         # Positive indices may refer forward (many writers rely on it); negative ones count

@@ -200,8 +200,9 @@ def _run(cmd, timeout=TIMEOUT, extra_env=None):
     env.setdefault("PYTHONUNBUFFERED", "1")
     if cwd:
         os.makedirs(cwd, exist_ok=True)
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env,
-                          cwd=cwd or ROOT)
+    # errors="replace": Blender's log quotes what it could not parse, bytes and all.
+    proc = subprocess.run(cmd, capture_output=True, text=True, errors="replace", timeout=timeout,
+                          env=env, cwd=cwd or ROOT)
     out = proc.stdout + proc.stderr
     # Shown with `pytest -s`, and in the failure message otherwise.
     print(out)
@@ -233,7 +234,7 @@ def test_update_timing_printed(runner, blender_env):
 @pytest.mark.parametrize("script", ["check_parity.py", "check_normals.py", "check_live.py",
                                     "check_render.py", "check_robustness.py", "check_data.py",
                                     "check_stack.py", "check_linked.py", "check_lattice_weights.py",
-                                    "check_stack_input.py"])
+                                    "check_stack_input.py", "check_obj_import.py"])
 def test_blender_script(runner, script, blender_env):
     rc, out = _run(blender_cmd(runner, script), extra_env=blender_env(runner))
     assert rc == 0, f"{runner} {script} failed (rc={rc}):\n{_summary(out)}\n--- tail ---\n{out[-3000:]}"

@@ -41,6 +41,7 @@ def _check_installed():
                                f"tree ({where}): run without PYTHONPATH=python")
         from smoothffd import _core  # noqa: F401  (an ImportError here fails the run)
 
+
 # tests/blender/ holds both the scripts that run *inside* Blender (check_*.py and their helpers,
 # which tests/test_blender.py drives and pytest does not collect: they are not named test_*.py)
 # and pytest suites of the add-on's modules that need no Blender (test_*.py), collected here.

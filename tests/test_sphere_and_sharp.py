@@ -10,25 +10,26 @@ from meshes import cube_mesh, random_bspline_lattice, sphere_mesh  # noqa: E402
 
 
 @pytest.mark.parametrize("shape,degree", [((3, 3, 3), 2), ((6, 6, 6), 2), ((5, 5, 5), 3)])
-def test_rest_icosphere_is_10x_closer_to_the_sphere(shape, degree, capsys):
-    """320-face icosphere with exact sphere normals under an identity lattice: the smooth
-    result's maximum radial error is at least 10x below the flat mesh's (measured at the same
-    tessellation points; (6,6,6) also clips every face against knot planes)."""
+def test_rest_icosphere_is_close_to_the_sphere(shape, degree, capsys):
+    """320-face icosphere with exact sphere normals under an identity lattice, level 8: the
+    smooth result's largest radial error within 2.5x of what the product measures (4.55e-4,
+    38-42x below the flat mesh's 0.0175 at the same tessellation points; (6,6,6) also clips
+    every face against knot planes), and its normals within 2.5x of the measured 0.034 degrees
+    of the sphere's."""
     mesh = sphere_mesh(2)
     lat = smoothffd.BSplineLattice.identity([-1.2] * 3, [1.2] * 3, shape=shape, degree=degree)
     r = smoothffd.deform(mesh, lat, level=8)
     smooth = np.abs(np.linalg.norm(r.positions, axis=1) - 1).max()
     flat = np.abs(np.linalg.norm(r.rest_positions, axis=1) - 1).max()
-    factor = flat / smooth
-    with capsys.disabled():
-        print(f"\n  icosphere {shape} deg {degree}: flat max radial error {flat:.5f}, "
-              f"smooth {smooth:.6f}, factor {factor:.1f}x")
-    assert factor >= 10
-    # The normals are those of the sphere too.
     T = r.triangles
     radial = r.positions[T] / np.linalg.norm(r.positions[T], axis=2, keepdims=True)
     cosang = np.sum(r.corner_normals * radial, axis=2)
-    assert np.degrees(np.arccos(np.clip(cosang.min(), -1, 1))) < 0.5
+    normal_deg = np.degrees(np.arccos(np.clip(cosang.min(), -1, 1)))
+    with capsys.disabled():
+        print(f"\n  icosphere {shape} deg {degree}: flat max radial error {flat:.5f}, "
+              f"smooth {smooth:.6f}, factor {flat / smooth:.1f}x, normals {normal_deg:.4f} deg")
+    assert smooth < 2.5 * 4.55e-4, smooth  # measured 4.55e-4 (3x3x3, 5x5x5), 4.17e-4 (6x6x6)
+    assert normal_deg < 2.5 * 0.034, normal_deg  # measured 0.028 (3x3x3, 5x5x5), 0.034 (6x6x6)
 
 
 def _normals_at(result, vertex):

@@ -84,7 +84,15 @@ def artefacts():
 
 
 def installed_mode():
-    return bool(artefacts())
+    """Whether the installed add-on is tested. The test command (SMOOTHFFD_TEST_INSTALLED=1)
+    tests what scripts/package.sh made: without its zips in dist/ the run fails, rather than
+    quietly testing the source tree instead."""
+    if artefacts():
+        return True
+    if os.environ.get("SMOOTHFFD_TEST_INSTALLED") == "1":
+        pytest.fail("SMOOTHFFD_TEST_INSTALLED=1, but dist/ has no add-on zip: scripts/package.sh "
+                    "must make them")
+    return False
 
 
 def _zip_for(runner):

@@ -122,7 +122,8 @@ def test_flat_shaded_input_comes_back_exactly(name):
             r = d.deform()
             assert d.plan.flat_triangles == len(d.plan.input_triangles()[1])
             err = np.abs(r.positions.astype(float) - r.rest_positions).max() / size
-            assert err < 1e-6, (shape, level, err)  # float32 rounding of coordinates ~1
+            # measured up to 1.33e-7 (the figure; float32 rounding of coordinates ~1)
+            assert err < flat_bound("identity"), (shape, level, err)
             assert metrics.quality(r, mesh, lattice).reversed == 0
 
 
@@ -202,13 +203,15 @@ CURVED_MEASURED = {
 CURVED_FACTOR = 2.5
 
 
-def check_curved_fit(name, device="cpu"):
+def check_curved_fit(name, device="cpu", normals=True):
+    """CURVED_FACTOR x CURVED_MEASURED bounds the geometry and, with `normals`, the normals."""
     mesh = _flat_shaded(load(name))
     gmax, gmean, amax = fit_errors(mesh, _random_moderate(mesh, 7), 6, device)
     mmax, mmean, mang = CURVED_MEASURED[name]
     assert gmax < CURVED_FACTOR * mmax, ("geometry max", gmax, mmax)
     assert gmean < CURVED_FACTOR * mmean, ("geometry mean", gmean, mmean)
-    assert amax < CURVED_FACTOR * mang, ("normal max", amax, mang)
+    if normals:
+        assert amax < CURVED_FACTOR * mang, ("normal max", amax, mang)
 
 
 @pytest.mark.parametrize("name", sorted(CURVED_MEASURED))

@@ -1,17 +1,18 @@
-"""Issue 19 on CUDA: the real-mesh corpus (tests/data/real) through both CUDA paths.
+"""Geometry quality on real assets, on CUDA: the real-mesh corpus (tests/data/real) through
+both CUDA paths.
 
 The plan does the geometry work (fold bound, shading bound, flat faces, clip snapping, local
 knot coordinates), the evaluators read it; these tests check that the GPU delivers what the
 CPU tests in test_real_meshes.py check there, on the same meshes and lattices:
 - both paths agree with the CPU evaluator on the same plan (positions to 1e-5 of the mesh's
   diagonal, each render vertex's normal to 1e-4 rad), every output element written;
-- the CUDA result has no reversed triangle (item 1), flat faces on the exact FFD of their flat
-  input (item 2), and a flat-shaded input comes back exactly at rest, within the CPU tests'
+- the CUDA result has no reversed triangle, flat faces on the exact FFD of their flat
+  input, and a flat-shaded input comes back exactly at rest, within the CPU tests'
   bounds (test_real_meshes.flat_bound: 3x what the product measures);
 - curved meshes against the exact FFD of the reference, with the CPU tests' bounds: the fit of
   flat-shaded copies under a random lattice (geometry) and the output at the input vertices;
 - shifting every knot (1e5, 1e7) leaves the CUDA output unchanged within float rounding, and
-  tiny knot spans stay accurate (item 4; those plans run the inline kernel's global mode).
+  tiny knot spans stay accurate (those plans run the inline kernel's global mode).
 
 Skipped (with the reason) where no usable CUDA device exists.
 """

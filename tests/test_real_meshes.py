@@ -1,7 +1,8 @@
-"""Issue 19, "geometry quality on real assets": the real-mesh corpus (tests/data/real) at
-several levels and lattices, each item checked against an independent reference.
+"""Geometry quality on real assets: the real-mesh corpus (tests/data/real) at several levels
+and lattices, each property checked against an independent reference (tests/reference.py, the
+input itself, or what the input's shape says).
 
-Item 3 (clean clipping): knot-plane cuts snap to nearby vertices, edges and cuts, so no piece
+Clean clipping: knot-plane cuts snap to nearby vertices, edges and cuts, so no piece
 is a sliver, and the output stays watertight.
 """
 import os
@@ -97,7 +98,7 @@ def _open_edges(triangles):
 
 
 # ----------------------------------------------------------------------------------------
-# Item 2: flat faces stay flat.
+# Flat faces stay flat.
 
 
 def _flat_shaded(mesh):
@@ -274,7 +275,7 @@ def test_smooth_meshes_interpolate_the_exact_ffd_at_their_vertices(name):
 
 
 # ----------------------------------------------------------------------------------------
-# Item 1: no reversed triangles where the lattice does not fold.
+# No reversed triangles where the lattice does not fold.
 
 
 def _reversed(res):
@@ -408,7 +409,7 @@ def test_normals_that_fold_nothing_are_kept(name):
 
 
 # ----------------------------------------------------------------------------------------
-# Item 4: exact with any knots.
+# Exact with any knots.
 
 
 def _knotted(mesh, inner, shift=0.0, scale=1.0, D=None, degree=2):

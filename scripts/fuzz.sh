@@ -7,8 +7,10 @@
 # (fuzz_cli.py, in process) and the bindings' argument conversion (fuzz_bindings.py, in a child
 # process so that a segfault is caught).
 # Seeds: native/fuzz/corpus/{plan,obj,lattice}; new inputs go to build/fuzz/corpus-*, crashes to
-# build/fuzz/crash-*. FUZZ_SECONDS (default 30) for fuzz_plan and fuzz_obj, FUZZ_PY_SECONDS
-# (default half of it) for each of the other three. Exit status non-zero on any crash.
+# build/fuzz/crash-*, each fuzzer's whole output to build/fuzz/fuzz_*.out. FUZZ_SECONDS (default
+# 30) for fuzz_plan and fuzz_obj, FUZZ_PY_SECONDS (default half of it) for each of the other
+# three. Exit status non-zero on any crash and whenever a fuzzer exits non-zero (one that
+# fails to start, say).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SECS=${FUZZ_SECONDS:-30}
@@ -32,16 +34,22 @@ for src in $(ls native/smoothffd/*/*.cpp | grep -v "^native/smoothffd/cuda/") na
 done
 "$CXX" -fsanitize=fuzzer,address,undefined "${objs[@]}" -o "$OUT/fuzz_plan" -lpthread
 echo "== fuzz_plan: ${SECS}s"
+rc=0
 UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 "$OUT/fuzz_plan" -max_total_time="$SECS" \
   -max_len=4096 -timeout=10 -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$OUT/crash-plan-" \
-  "$OUT/corpus-plan" native/fuzz/corpus/plan 2>&1 | grep -E "^#[0-9]+ *(DONE|INITED)|stat::|ERROR|SUMMARY|fuzz_plan:|Test unit written" || true
+  "$OUT/corpus-plan" native/fuzz/corpus/plan > "$OUT/fuzz_plan.out" 2>&1 || rc=$?
+grep -E "^#[0-9]+ *(DONE|INITED)|stat::|ERROR|SUMMARY|fuzz_plan:|Test unit written" "$OUT/fuzz_plan.out" || true
 if ls "$OUT"/crash-plan-* >/dev/null 2>&1; then echo "fuzz_plan: CRASH (see $OUT/crash-plan-*)"; exit 1; fi
+if [ "$rc" != 0 ]; then echo "fuzz_plan: exit status $rc (see $OUT/fuzz_plan.out)"; exit 1; fi
 echo "== fuzz_obj: ${SECS}s"
 PY=/usr/bin/python3
 [ -x build/venv-fuzz/bin/python ] && PY=build/venv-fuzz/bin/python
-PYTHONPATH=python "$PY" native/fuzz/fuzz_obj.py --seconds "$SECS" --corpus native/fuzz/corpus/obj --out "$OUT" 2>&1 \
-  | grep -E "^fuzz_obj|^#[0-9]+ *(DONE|INITED)|stat::|Error|Traceback|^  |CRASH|Test unit written" || true
+rc=0
+PYTHONPATH=python "$PY" native/fuzz/fuzz_obj.py --seconds "$SECS" --corpus native/fuzz/corpus/obj --out "$OUT" \
+  > "$OUT/fuzz_obj.out" 2>&1 || rc=$?
+grep -E "^fuzz_obj|^#[0-9]+ *(DONE|INITED)|stat::|Error|Traceback|^  |CRASH|Test unit written" "$OUT/fuzz_obj.out" || true
 if ls "$OUT"/crash-obj-* >/dev/null 2>&1; then echo "fuzz_obj: CRASH (see $OUT/crash-obj-*)"; exit 1; fi
+if [ "$rc" != 0 ]; then echo "fuzz_obj: exit status $rc (see $OUT/fuzz_obj.out)"; exit 1; fi
 for target in lattice_json cli bindings; do
   echo "== fuzz_$target: ${PY_SECS}s"
   args=(--seconds "$PY_SECS" --out "$OUT")

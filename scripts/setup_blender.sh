@@ -71,8 +71,9 @@ for name in bpy-4.2 bpy-4.5 bpy-5.0; do
     wanted "$name" || continue
     [ -e "$CACHE/venv-$name/.smoothffd-done-${BPY_VERSION[$name]}" ] && continue
     if [ -z "$PY311" ]; then
-        echo "setup_blender: no Python 3.11 (apt-get install python3 python3-venv); $name not set up" >&2
-        continue
+        echo "setup_blender: no Python 3.11 for $name (apt-get install python3 python3-venv, or" \
+             "PYTHON311=/path/to/python3.11; SMOOTHFFD_SKIP_BLENDERS=\"$name\" leaves it out)" >&2
+        exit 1
     fi
     if ! "$PY311" -c 'import ensurepip' 2>/dev/null; then
         $SUDO apt-get install -y --no-install-recommends python3-venv

@@ -1,6 +1,8 @@
 import os
 import sys
 
+import pytest
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 # The tests' own helpers (meshes.py, reference.py). `smoothffd` itself comes from the
@@ -19,7 +21,16 @@ def pytest_report_header(config):
             f" (_core: {'loaded' if core else 'MISSING'})")
 
 
+_LAST_FAILED_ONLY = False   # --lf collects only some files, on purpose
+
+
 def pytest_configure(config):
+    global _LAST_FAILED_ONLY
+    _LAST_FAILED_ONLY = bool(getattr(config.option, "lf", False))
+    _check_installed()
+
+
+def _check_installed():
     """Testing the artefact: the installed package must be the one imported, and whole."""
     if os.environ.get("SMOOTHFFD_TEST_INSTALLED") == "1":
         import smoothffd
@@ -30,5 +41,26 @@ def pytest_configure(config):
                                f"tree ({where}): run without PYTHONPATH=python")
         from smoothffd import _core  # noqa: F401  (an ImportError here fails the run)
 
-# tests/blender/ holds scripts that run *inside* Blender; tests/test_blender.py drives them.
-collect_ignore = ["blender"]
+
+# tests/blender/ holds both the scripts that run *inside* Blender (check_*.py and their helpers,
+# which tests/test_blender.py drives and pytest does not collect: they are not named test_*.py)
+# and pytest suites of the add-on's modules that need no Blender (test_*.py), collected here.
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_make_collect_report(collector):
+    """A test file that yields no tests fails the run, with the reason: a module-level skip
+    (`pytest.importorskip` of a module that is missing, `pytest.skip(allow_module_level=True)`)
+    or a file whose tests were all lost. A missing native module is a broken set-up, not a
+    reason to skip a whole suite; a test that cannot run here skips itself, and says why."""
+    outcome = yield
+    report = outcome.get_result()
+    if _LAST_FAILED_ONLY or not isinstance(collector, pytest.Module):
+        return
+    if report.skipped:
+        why = report.longrepr[2] if isinstance(report.longrepr, tuple) else report.longrepr
+        report.outcome = "failed"
+        report.longrepr = f"{report.nodeid}: the whole file was skipped, so it tests nothing ({why})"
+    elif report.passed and not report.result:
+        report.outcome = "failed"
+        report.longrepr = f"{report.nodeid}: collected no tests"

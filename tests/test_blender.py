@@ -11,6 +11,7 @@ ${SMOOTHFFD_CACHE:-~/.cache/smoothffd}):
 
 A test is skipped, with the reason, only when that Blender is not installed (or, for 5.1 from
 the source tree, when the core has not been built for Python 3.13: scripts/build_py313.sh).
+An installed one that is broken (bpy does not import, or it is another version) fails.
 Each script prints PASS/FAIL lines and exits non-zero on failure.
 
 What the scripts test: by default the source tree (addon/ and python/). The *installed* add-on
@@ -83,14 +84,22 @@ def artefacts():
 
 
 def installed_mode():
-    return bool(artefacts())
+    """Whether the installed add-on is tested. The test command (SMOOTHFFD_TEST_INSTALLED=1)
+    tests what scripts/package.sh made: without its zips in dist/ the run fails, rather than
+    quietly testing the source tree instead."""
+    if artefacts():
+        return True
+    if os.environ.get("SMOOTHFFD_TEST_INSTALLED") == "1":
+        pytest.fail("SMOOTHFFD_TEST_INSTALLED=1, but dist/ has no add-on zip: scripts/package.sh "
+                    "must make them")
+    return False
 
 
 def _zip_for(runner):
     kind = "legacy" if BLENDERS[runner] < (4, 2) else "extension"
     z = artefacts().get(kind)
-    if z is None:
-        pytest.skip(f"testing installed add-ons ({artefacts()}), but there is no {kind} zip")
+    if z is None:   # a packaging that made one zip and not the other is broken
+        pytest.fail(f"testing installed add-ons ({artefacts()}), but there is no {kind} zip")
     return z
 
 
@@ -148,21 +157,39 @@ def _probe(runner):
         if not os.path.exists(py):
             return None, f"no {runner} venv at {os.path.dirname(os.path.dirname(py))} ({SETUP_HINT})"
         prefix = [py]
-    probe = subprocess.run(prefix + ["-c", "import bpy; print(*bpy.app.version[:2])"],
-                           capture_output=True, text=True, cwd=ROOT)
-    if probe.returncode != 0:
-        return None, f"bpy does not import in {runner}: {probe.stderr.strip()[-300:]}"
-    got = tuple(int(v) for v in probe.stdout.split()[-2:])
-    if got != BLENDERS[runner]:
-        return None, f"{runner} has Blender {got}, not {BLENDERS[runner]} ({SETUP_HINT})"
     return prefix, None
 
 
+@functools.lru_cache(maxsize=None)
+def _broken(runner, prefix):
+    """Why an installed Blender cannot run the scripts (bpy does not import, or it is another
+    version than the one set up), or None."""
+    if runner == "blender-3.4":
+        code = "import bpy, sys; print(*bpy.app.version[:2]); sys.stdout.flush()"
+        cmd = list(prefix[:-1]) + ["--python-expr", code]
+    else:
+        cmd = list(prefix) + ["-c", "import bpy; print(*bpy.app.version[:2])"]
+    probe = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=TIMEOUT)
+    if probe.returncode != 0:
+        return f"bpy does not import in {runner}: {(probe.stdout + probe.stderr).strip()[-500:]}"
+    words = [w for line in probe.stdout.splitlines() for w in [line.split()]
+             if len(w) == 2 and all(x.isdigit() for x in w)]
+    got = tuple(int(v) for v in words[-1]) if words else None
+    if got != BLENDERS[runner]:
+        return f"{runner} has Blender {got}, not {BLENDERS[runner]} ({SETUP_HINT})"
+    return None
+
+
 def blender_cmd(runner, script, *args):
-    """The command running `script` (path relative to tests/blender, or absolute) in `runner`."""
+    """The command running `script` (path relative to tests/blender, or absolute) in `runner`.
+    Skips only when that Blender is not installed; one that is installed but broken (bpy does
+    not import, or reports another version) fails the test."""
     prefix, why = _probe(runner)
     if prefix is None:
         pytest.skip(why)
+    broken = _broken(runner, tuple(prefix))
+    if broken:
+        pytest.fail(broken)
     script = os.path.join(SCRIPTS, script)
     if runner == "blender-3.4":
         return prefix + [script, "--", *args]
@@ -181,8 +208,9 @@ def _run(cmd, timeout=TIMEOUT, extra_env=None):
     env.setdefault("PYTHONUNBUFFERED", "1")
     if cwd:
         os.makedirs(cwd, exist_ok=True)
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env,
-                          cwd=cwd or ROOT)
+    # errors="replace": Blender's log quotes what it could not parse, bytes and all.
+    proc = subprocess.run(cmd, capture_output=True, text=True, errors="replace", timeout=timeout,
+                          env=env, cwd=cwd or ROOT)
     out = proc.stdout + proc.stderr
     # Shown with `pytest -s`, and in the failure message otherwise.
     print(out)
@@ -214,7 +242,7 @@ def test_update_timing_printed(runner, blender_env):
 @pytest.mark.parametrize("script", ["check_parity.py", "check_normals.py", "check_live.py",
                                     "check_render.py", "check_robustness.py", "check_data.py",
                                     "check_stack.py", "check_linked.py", "check_lattice_weights.py",
-                                    "check_stack_input.py"])
+                                    "check_stack_input.py", "check_obj_import.py"])
 def test_blender_script(runner, script, blender_env):
     rc, out = _run(blender_cmd(runner, script), extra_env=blender_env(runner))
     assert rc == 0, f"{runner} {script} failed (rc={rc}):\n{_summary(out)}\n--- tail ---\n{out[-3000:]}"

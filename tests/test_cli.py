@@ -133,6 +133,18 @@ def test_info_on_mesh_and_lattice(capsys):
     assert rc == 0 and "bspline 4x4x5" in out
 
 
+def test_info_reads_a_utf16_obj_as_its_utf8_twin(tmp_path, capsys):
+    """A UTF-16 OBJ with its byte order mark (as Windows tools save it) was 'the mesh has no
+    vertices'."""
+    text = (DATA / "vase.obj").read_text(encoding="utf-8")
+    utf16 = tmp_path / "vase16.obj"
+    utf16.write_bytes(b"\xff\xfe" + text.encode("utf-16-le"))
+    rc8, out8, _ = run_main(["info", DATA / "vase.obj"], capsys)
+    rc16, out16, _ = run_main(["info", utf16], capsys)
+    assert rc8 == rc16 == 0
+    assert out16.splitlines()[1:] == out8.splitlines()[1:]   # all but the "file" line
+
+
 @pytest.mark.parametrize(
     "argv, pattern",
     [

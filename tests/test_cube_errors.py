@@ -1,10 +1,16 @@
 """The paper's approximation-error test (sec. 6.3, Tables 2-4) on a cube.
 
-Cube [-1, 1]^3 (2 x 2 quads a face, sharp edges) deformed by a degree 2 (3x3x3) and a degree 3
-(4x4x4) B-spline volume with the `bulge_twist` deformation; errors against the exact FFD of the
-flat faces (independent reference in tests/reference.py): geometry = distance between each
-output vertex and the exact image of its rest point, normal = angle between each output corner
-normal and cof(J) n_face, volume against the Gauss-Legendre integral of det J over the cube.
+Cube [-1, 1]^3 (2 x 2 quads a face, sharp edges) deformed by a degree 2 (3x3x3, and 5x5x5: 27
+knot boxes, every face clipped) and a degree 3 (4x4x4) B-spline volume with the `bulge_twist`
+deformation; errors against the exact FFD of the flat faces (independent reference in
+tests/reference.py): geometry = distance between each output vertex and the exact image of its
+rest point, normal = angle between each output corner normal and cof(J) n_face, volume against
+the Gauss-Legendre integral of det J over the cube.
+
+The bounds are regression bounds: FACTOR times what the product measures (MEASURED, the
+figures of docs/results.md), two orders of magnitude below the paper's own figures and three
+to five above float rounding (1e-7 of the cube's size), so a fit that gets materially worse
+fails here.
 """
 
 import numpy as np
@@ -24,6 +30,19 @@ PAPER = {  # Tables 2, 3, 4 (columns 1 and 2 of Fig. 14)
 }
 
 
+# What the product measures, per (shape, degree): docs/results.md, "Approximation errors" (the
+# 5x5x5 row there predates straight flat-face edges; these are its figures since).
+MEASURED = {
+    ((3, 3, 3), 2): dict(geometry_avg=2.31e-05, geometry_max=1.22e-04, normal_avg_deg=1.41e-03,
+                         normal_max_deg=1.65e-02, volume_rel=2.44e-04),
+    ((4, 4, 4), 3): dict(geometry_avg=5.59e-05, geometry_max=4.27e-04, normal_avg_deg=2.44e-03,
+                         normal_max_deg=2.41e-02, volume_rel=3.37e-04),
+    ((5, 5, 5), 2): dict(geometry_avg=5.57e-06, geometry_max=7.62e-05, normal_avg_deg=2.50e-04,
+                         normal_max_deg=5.98e-03, volume_rel=1.17e-03),
+}
+FACTOR = 2.5
+
+
 def exact_volume(lattice):
     g, w = np.polynomial.legendre.leggauss(10)
     P = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
@@ -32,10 +51,11 @@ def exact_volume(lattice):
     return float(np.sum(W * np.linalg.det(J)))
 
 
-@pytest.mark.parametrize("degree", [2, 3])
-def test_cube_errors_against_exact_ffd(degree, capsys):
+@pytest.mark.parametrize("shape,degree", sorted(MEASURED))
+def test_cube_errors_against_exact_ffd(shape, degree, capsys):
+    """Every error within FACTOR of what the product measures, and below the paper's."""
     mesh = grid_cube(2)
-    lat = smoothffd.BSplineLattice.identity([-1] * 3, [1] * 3, shape=(degree + 1,) * 3, degree=degree)
+    lat = smoothffd.BSplineLattice.identity([-1] * 3, [1] * 3, shape=shape, degree=degree)
     lat = bulge_twist(lat)
     r = smoothffd.deform(mesh, lat, level=10)
     fn = ref.face_normals_of_polygons(mesh.positions, (mesh.corner_vertices, mesh.face_offsets))
@@ -43,12 +63,15 @@ def test_cube_errors_against_exact_ffd(degree, capsys):
     e = ref.smooth_ffd_errors(r, fn, exact.evaluate)
     v_exact = exact_volume(lat)
     e["volume_rel"] = abs(e["volume"] - v_exact) / v_exact
+    keys = ("geometry_avg", "geometry_max", "normal_avg_deg", "normal_max_deg", "volume_rel")
+    paper = PAPER[degree] if shape == (degree + 1,) * 3 else None
     with capsys.disabled():
-        print(f"\n  cube, degree {degree}:   ours / paper")
-        for k in ("geometry_avg", "geometry_max", "normal_avg_deg", "normal_max_deg", "volume_rel"):
-            print(f"    {k:15s} {e[k]:.6g} / {PAPER[degree][k]:.6g}")
-    # The smooth result approximates the exact FFD at least as well as the paper reports.
-    for k in ("geometry_avg", "geometry_max", "normal_avg_deg", "normal_max_deg"):
-        assert e[k] < PAPER[degree][k], k
-    # Volume: the level-10 tessellation of the patches is within 0.2% of the exact volume.
-    assert e["volume_rel"] < 2e-3
+        print(f"\n  cube, {shape} degree {degree}:   ours / measured" + (" / paper" if paper else ""))
+        for k in keys:
+            print(f"    {k:15s} {e[k]:.6g} / {MEASURED[shape, degree][k]:.6g}"
+                  + (f" / {paper[k]:.6g}" if paper else ""))
+    for k in keys:
+        assert e[k] < FACTOR * MEASURED[shape, degree][k], (k, e[k])
+    if paper:  # the paper's cube columns (its deformation is not given: comparable in size only)
+        for k in ("geometry_avg", "geometry_max", "normal_avg_deg", "normal_max_deg"):
+            assert e[k] < PAPER[degree][k], k

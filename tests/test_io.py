@@ -141,7 +141,7 @@ def test_forward_references_allowed(tmp_path):
         ("v 0 0\n", 1, "3 coordinates"),
         ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", 4, "index 0"),
         ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf -4 1 2\n", 4, "vertex index -4 .* out of range"),
-        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1/1 2/1 3/1\n", 5, "texture coordinate index 1"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1 2 3\nf 1/1 2/2 3/1\n", 6, "texture coordinate index 2"),
         ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\n# c\nf 1//1 2//2 3//1\n", 6, "normal index 2"),
         ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 a\n", 4, "non-integer index"),
         ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3/4/5/6\n", 4, "malformed face corner"),
@@ -349,6 +349,58 @@ def test_bom_keeps_the_first_vertex(tmp_path):
     assert d.corner_vertices.tolist() == [0, 1, 2]
 
 
+_UV_TRIANGLE = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n"
+
+
+@pytest.mark.parametrize("encoding,bom", [
+    ("utf-16-le", b"\xff\xfe"), ("utf-16-be", b"\xfe\xff"),
+    ("utf-32-le", b"\xff\xfe\x00\x00"), ("utf-32-be", b"\x00\x00\xfe\xff"),
+    ("utf-8", b"\xef\xbb\xbf")])
+@pytest.mark.parametrize("suffix", [".obj", ".obj.gz"])
+def test_unicode_text_with_a_byte_order_mark_is_read(tmp_path, encoding, bom, suffix):
+    """UTF-16 and UTF-32 files as Windows tools save them (a byte order mark first) read as
+    their UTF-8 twin: it used to be 'the mesh has no vertices' (every line a NUL-spaced
+    unknown keyword)."""
+    want = sio.read_obj(_write_bytes(tmp_path / f"plain{suffix}", _UV_TRIANGLE.encode()))
+    got = sio.read_obj(_write_bytes(tmp_path / f"bom{suffix}", bom + _UV_TRIANGLE.encode(encoding)))
+    for f in ("positions", "corner_vertices", "face_offsets", "uvs"):
+        assert np.array_equal(getattr(got, f), getattr(want, f)), f
+
+
+@pytest.mark.parametrize("data,line", [
+    (_UV_TRIANGLE.encode("utf-16-le"), 1),              # UTF-16 without its byte order mark
+    (_UV_TRIANGLE.encode("utf-32-be"), 1),
+    (b"v 0 0 0\nv 1 0 0\nv 0 1 0\x00\nf 1 2 3\n", 3),  # a NUL byte in UTF-8 text
+])
+def test_nul_characters_are_refused_naming_the_encoding(tmp_path, data, line):
+    with pytest.raises(ValueError, match=rf"nul\.obj:{line}: NUL character in UTF-8 text: UTF-16 or "
+                                         r"UTF-32 without a byte order mark, or not a text file"):
+        sio.read_obj(_write_bytes(tmp_path / "nul.obj", data))
+
+
+@pytest.mark.parametrize("text,needle", [
+    ("v 3.1+e2 0 0\n", ":1: non-numeric vertex value '3.1+e2' (an exponent's sign follows the e: 3.1e+2)"),
+    ("v 0 0 0\nvn 0 0 -1.5-E3\n", ":2: non-numeric normal value '-1.5-E3' (an exponent's sign follows the e: -1.5E-3)"),
+    ("vt .5+e1 0\n", ":1: non-numeric texture coordinate value '.5+e1' (an exponent's sign follows the e: .5e+1)"),
+])
+def test_exponent_sign_before_the_e_is_refused_with_the_spelling_meant(tmp_path, text, needle):
+    """Blender's importer reads "v 3.1+e2 5 6" as (3.1, 0, 0): its number parser stops at the
+    "+", and the rest of the line parses as nothing, which it turns into zeros. A silently
+    different mesh; refused here instead, naming the spelling that was probably meant."""
+    p = tmp_path / "exp.obj"
+    p.write_text(text + "v 1 0 0\nv 0 1 0\nf 1 2 3\n", encoding="utf-8")
+    with pytest.raises(ValueError, match=re.escape(needle)):
+        sio.read_obj(p)
+
+
+def _write_bytes(path, data):
+    if str(path).endswith(".gz"):
+        import gzip
+        data = gzip.compress(data)
+    path.write_bytes(data)
+    return path
+
+
 @pytest.mark.parametrize("name,needle", [
     ("index 3-", "non-integer index in face corner '3-'"),
     ("index 4-1", "non-integer index in face corner '4-1'"),
@@ -364,10 +416,49 @@ def test_strict_syntax_refused_with_the_line(tmp_path, name, needle):
         sio.read_obj(p)
 
 
-def test_form_feed_line_is_an_unknown_keyword(tmp_path):
+def test_control_characters_separate_tokens_as_in_blender(tmp_path):
+    """Blender's importer takes every ASCII control character as a blank: "\fv 5 5 5" is a
+    vertex there. Ignored here as an unknown keyword "\fv", it shifted every later vertex's
+    index by one without a word."""
     p = tmp_path / "ff.obj"
     p.write_text(_ODD["form feed before v"], encoding="utf-8")
-    assert len(sio.read_obj(p).positions) == 3   # "\fv" is not "v": ignored, as by both readers
+    assert sio.read_obj(p).positions.tolist() == [[0, 0, 0], [1, 0, 0], [0, 1, 0], [5, 5, 5]]
+    p.write_text("v 0 0 0\nv 1\x0b0\x1f0\nv\x010 1 0\x0c\nf\t1 2\x1e3\n", encoding="utf-8")
+    d = sio.read_obj(p)
+    assert d.positions.tolist() == [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
+    assert d.corner_vertices.tolist() == [0, 1, 2]
+
+
+def test_backslash_continues_a_line(tmp_path):
+    """The OBJ specification's line continuation, which Blender's importer follows; later
+    lines keep their numbers in error messages."""
+    p = tmp_path / "cont.obj"
+    p.write_bytes(b"v 0 0 0\nv 1 0 \\\n0\r\nv 0 1 0\nf 1 \\\r\n2 \\\n3\n")
+    d = sio.read_obj(p)
+    assert d.positions.tolist() == [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
+    assert d.corner_vertices.tolist() == [0, 1, 2] and d.face_offsets.tolist() == [0, 3]
+    p.write_bytes(b"v 0 0 0\nv 1 0 \\\n0\nv 0 1 0\nv x 0 0\n")
+    with pytest.raises(ValueError, match=r"cont\.obj:5: non-numeric vertex value 'x'"):
+        sio.read_obj(p)
+
+
+@pytest.mark.parametrize("corners,lacking", [("1//1 2//1 3//1", ["normals"]),
+                                             ("1/1 2/2 3/3", ["texture coordinates"]),
+                                             ("1/1/1 2/2/2 3/3/3", ["texture coordinates", "normals"])])
+def test_indices_of_elements_the_file_lacks_are_ignored(tmp_path, corners, lacking):
+    """Some exporters write "f 1//1" with no vn in the file; Blender's importer ignores such
+    indices, and so does this reader, with a warning (they were an out-of-range error)."""
+    p = tmp_path / "lacks.obj"
+    p.write_text(f"v 0 0 0\nv 1 0 0\nv 0 1 0\nf {corners}\n", encoding="utf-8")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        d = sio.read_obj(p)
+    said = [str(w.message) for w in caught]
+    assert len(said) == len(lacking), said
+    for what in lacking:
+        assert any(f"face corners refer to {what}, but the file defines none" in m for m in said), said
+    assert d.corner_vertices.tolist() == [0, 1, 2]
+    assert d.corner_normals is None and d.uvs is None
 
 
 def test_long_bad_number_is_not_echoed_whole(tmp_path):

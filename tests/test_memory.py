@@ -4,6 +4,7 @@ patch count, before any large table exists); the estimate is held to what real p
 lattices with more knot spans than the core numbers are refused where they are made."""
 
 import importlib
+import io
 import json
 
 import numpy as np
@@ -65,12 +66,32 @@ def test_deformer_checks_available_memory(monkeypatch):
         smoothffd.Deformer(two_triangles(), lat, level=10, device="cpu")
 
 
-def test_available_memory_is_memavailable():
-    avail = deform._available_memory()
-    with open("/proc/meminfo") as fh:
-        info = {line.split(":")[0]: int(line.split()[1]) * 1024 for line in fh}
-    assert avail == info["MemAvailable"]
-    assert avail >= info["MemFree"]  # free pages alone (the old check) undercount
+def _meminfo(monkeypatch, text):
+    """deform._available_memory reads `text` as /proc/meminfo (one read of a fixed file: the
+    real one changes between two reads)."""
+    real_open = open
+
+    def fake_open(path, *args, **kw):
+        if path == "/proc/meminfo":
+            return io.BytesIO(text.encode())
+        return real_open(path, *args, **kw)
+    monkeypatch.setattr(deform, "open", fake_open, raising=False)
+
+
+def test_available_memory_is_memavailable(monkeypatch):
+    # MemFree alone (free pages: the old check) undercounts; MemAvailable adds what the kernel
+    # can reclaim (page cache and the like).
+    _meminfo(monkeypatch, "MemTotal:       16000000 kB\nMemFree:          1000000 kB\n"
+                          "MemAvailable:    9000000 kB\nBuffers:          200000 kB\n")
+    assert deform._available_memory() == 9000000 * 1024
+
+
+def test_available_memory_without_memavailable_is_free_pages(monkeypatch):
+    """Older kernels have no MemAvailable: the free pages then."""
+    _meminfo(monkeypatch, "MemTotal:       16000000 kB\nMemFree:          1000000 kB\n")
+    pages = {"SC_AVPHYS_PAGES": 250000, "SC_PAGE_SIZE": 4096}
+    monkeypatch.setattr(deform.os, "sysconf", pages.__getitem__)
+    assert deform._available_memory() == 250000 * 4096
 
 
 def test_too_many_knot_spans_refused_where_the_lattice_is_made():

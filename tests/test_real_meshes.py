@@ -1,5 +1,6 @@
-"""Geometry quality on real assets: the real-mesh corpus (tests/data/real) at
-several levels and lattices, each item checked against an independent reference.
+"""Geometry quality on real assets: the real-mesh corpus (tests/data/real) at several levels
+and lattices, each property checked against an independent reference (tests/reference.py, the
+input itself, or what the input's shape says).
 
 Clean clipping: knot-plane cuts snap to nearby vertices, edges and cuts, so no piece
 is a sliver, and the output stays watertight.
@@ -11,6 +12,7 @@ import pytest
 
 pytest.importorskip("smoothffd._core", reason="native module not built: run scripts/build.sh")
 
+import reference as ref  # noqa: E402
 import smoothffd  # noqa: E402
 from smoothffd import cli, lattice_json, metrics  # noqa: E402
 from smoothffd import io as objio  # noqa: E402
@@ -121,8 +123,23 @@ def test_flat_shaded_input_comes_back_exactly(name):
             r = d.deform()
             assert d.plan.flat_triangles == len(d.plan.input_triangles()[1])
             err = np.abs(r.positions.astype(float) - r.rest_positions).max() / size
-            assert err < 1e-6, (shape, level, err)  # float32 rounding of coordinates ~1
+            # measured up to 1.33e-7 (the figure; float32 rounding of coordinates ~1)
+            assert err < flat_bound("identity"), (shape, level, err)
             assert metrics.quality(r, mesh, lattice).reversed == 0
+
+
+# Largest distance of a flat face's output vertex from the exact FFD of the flat input, relative
+# to the diagonal, over the meshes of test_flat_faces_follow_the_lattice and levels 3 and 6, as
+# measured (the whole distance; the part across the surface is smaller): identity 1.33e-7 (the
+# figure, level 6), twist 3.34e-7 (the figure, level 6), fine bend 1.04e-6 (the cube, level 6).
+# Float rounding of the coordinates is about 6e-8 of the diagonal.
+FLAT_MEASURED = {"identity": 1.33e-7, "twist": 3.34e-7, "fine-bend": 1.04e-6}
+FLAT_FACTOR = 3.0
+
+
+def flat_bound(lat):
+    """The regression bound of flat faces under LATTICES[lat]: FLAT_FACTOR x measured."""
+    return FLAT_FACTOR * FLAT_MEASURED[lat]
 
 
 @pytest.mark.parametrize("name", ["figure", "cube", "goblet", "suzanne", "cylinder"])
@@ -133,16 +150,128 @@ def test_flat_faces_follow_the_lattice(name, lat):
     itself within rounding, borders with smooth faces included (the whole distance, along the
     surface too: a flat face's edges keep the FFD of the straight edge; before, a cap's rim
     followed the smooth side's curve, 1.4e-3 of the diagonal off on the cylinder, 1e-2 on the
-    figure); deformed, on the exact FFD of the flat faces within the cubic's approximation error
-    (as the paper's cube), not bulging as the normals would."""
+    figure); deformed, on the exact FFD of the flat faces within 3x of the measured fit error
+    (FLAT_MEASURED), not bulging as the normals would."""
     mesh = load(name)
     lattice = lattice_for(mesh, **LATTICES[lat])
     for level in (3, 6):
         q = metrics.quality(smoothffd.Deformer(mesh, lattice, level=level, device="cpu").deform(),
                             mesh, lattice)
         assert q.flat_faces > 0
-        assert q.flat_deviation < (1e-6 if lat == "identity" else 1e-3), q
-        assert q.flat_slide < (1e-6 if lat == "identity" else 1e-3), q
+        assert q.flat_deviation < flat_bound(lat), q
+        assert q.flat_slide < flat_bound(lat), q
+
+
+# ----------------------------------------------------------------------------------------
+# Curved meshes under deformation against the exact FFD (tests/reference.py).
+
+
+def reference_lattice(lattice):
+    """lattice.evaluate's signature from the independent reference (tests/reference.py)."""
+    return ref.BSplineReference(lattice.control_points, lattice.degree, lattice.knots,
+                                lattice.box_min, lattice.box_max).evaluate
+
+
+def fit_errors(mesh, lattice, level, device="cpu"):
+    """A flat-shaded mesh's output against the exact FFD of its flat input (the reference):
+    (geometry max, geometry mean) relative to the diagonal, each output vertex against the
+    image of its rest point, and the largest angle (degrees) between an output corner normal
+    and cof J n (Eq. 3), n its face's normal (the input's corner normal), J at the corner's rest
+    point (continuous there: quadratic, simple knots)."""
+    res = smoothffd.Deformer(mesh, lattice, level=level, device=device).deform()
+    size = np.linalg.norm(np.ptp(mesh.positions, axis=0))
+    F, J = reference_lattice(lattice)(res.rest_positions.astype(np.float64))
+    geo = np.linalg.norm(res.positions - F, axis=1) / size
+    fn = metrics._unit(metrics.polygon_normals(mesh.positions, mesh.corner_vertices, mesh.face_offsets))
+    exact = metrics._unit(np.einsum("tcrk,tk->tcr", ref.cofactor(J)[res.triangles], fn[res.face_index]))
+    got = metrics._unit(res.corner_normals.astype(np.float64))
+    angle = np.degrees(np.arccos(np.clip(np.einsum("tci,tci->tc", got, exact), -1, 1)))
+    return geo.max(), geo.mean(), angle.max()
+
+
+# Flat-shaded copies of the curved meshes under _random_moderate(mesh, 7) (every control point
+# moved at random, condition number under 2), level 6, as measured: geometry max and mean
+# (relative to the diagonal), normal max (degrees). Float rounding: about 6e-8 and 1e-4 degrees.
+CURVED_MEASURED = {
+    "uv_sphere": (1.23e-5, 4.56e-7, 0.212),
+    "torus": (8.68e-6, 3.60e-7, 0.0683),
+    "rock": (1.90e-6, 7.74e-8, 0.0611),
+    "suzanne_subsurf": (2.20e-5, 5.90e-8, 0.183),
+    "goblet": (4.17e-5, 8.87e-7, 0.0247),
+    "cylinder": (4.94e-4, 9.05e-6, 0.682),
+    "figure": (7.59e-5, 7.98e-7, 0.388),
+}
+CURVED_FACTOR = 2.5
+
+
+def check_curved_fit(name, device="cpu", normals=True):
+    """CURVED_FACTOR x CURVED_MEASURED bounds the geometry and, with `normals`, the normals."""
+    mesh = _flat_shaded(load(name))
+    gmax, gmean, amax = fit_errors(mesh, _random_moderate(mesh, 7), 6, device)
+    mmax, mmean, mang = CURVED_MEASURED[name]
+    assert gmax < CURVED_FACTOR * mmax, ("geometry max", gmax, mmax)
+    assert gmean < CURVED_FACTOR * mmean, ("geometry mean", gmean, mmean)
+    if normals:
+        assert amax < CURVED_FACTOR * mang, ("normal max", amax, mang)
+
+
+@pytest.mark.parametrize("name", sorted(CURVED_MEASURED))
+def test_curved_meshes_follow_the_exact_ffd(name):
+    """The fit on curved real meshes: a flat-shaded copy (every face flat, the smooth FFD then
+    approximates the exact FFD of the flat input, as the paper's cube) under a random lattice
+    deformation, level 6: geometry (max and mean) and normals (max) within 2.5x of what the
+    product measures (CURVED_MEASURED) against the dense exact FFD of the reference."""
+    check_curved_fit(name)
+
+
+def vertex_errors(mesh, lattice, level, device="cpu"):
+    """The output at the input's own vertices (the first len(mesh.positions) output vertices)
+    against the reference: the largest distance from F(v) relative to the diagonal, and the
+    largest angle (degrees) between an output corner normal there and the nearest of the
+    vertex's input corner normals mapped by cof J(v)."""
+    res = smoothffd.Deformer(mesh, lattice, level=level, device=device).deform()
+    size = np.linalg.norm(np.ptp(mesh.positions, axis=0))
+    V = len(mesh.positions)
+    F, J = reference_lattice(lattice)(mesh.positions.astype(np.float64))
+    geo = np.linalg.norm(res.positions[:V] - F, axis=1).max() / size
+    exact = metrics._unit(np.einsum("crk,ck->cr", ref.cofactor(J)[mesh.corner_vertices],
+                                    metrics._corner_normals_of(mesh)))
+    t, c = np.nonzero(res.triangles < V)
+    v = res.triangles[t, c]
+    got = metrics._unit(res.corner_normals[t, c].astype(np.float64))
+    order = np.argsort(mesh.corner_vertices, kind="stable")
+    first = np.searchsorted(mesh.corner_vertices[order], np.arange(V))
+    count = np.bincount(mesh.corner_vertices, minlength=V)
+    best = np.full(len(v), -1.0)
+    for k in range(count.max()):
+        ok = k < count[v]
+        cc = order[np.minimum(first[v] + k, len(order) - 1)]
+        best = np.where(ok, np.maximum(best, np.einsum("ij,ij->i", got, exact[cc])), best)
+    return geo, np.degrees(np.arccos(np.clip(best, -1, 1))).max()
+
+
+# The output at input vertices, as measured over the corpus, the twist, the fine bend and the
+# random lattice, levels 1 and 3: 6.5e-8 of the diagonal (the figure), normals 2.1e-5 degrees on
+# the x86-64-v3 path, 4.3e-5 on the v2 path: float rounding, the patches interpolate the exact
+# FFD there. Bounds 3x and 5x that (float noise, not the fit, sets them).
+VERTEX_BOUND = (2e-7, 2e-4)
+
+
+@pytest.mark.parametrize("name", MESHES)
+def test_smooth_meshes_interpolate_the_exact_ffd_at_their_vertices(name):
+    """Smooth (and mixed) meshes with their own split normals: what is comparable with the
+    exact FFD is the output at the input vertices, where the patches interpolate it: positions
+    F(v) and normals cof J(v) n (Eq. 3) within float rounding, under the twist, the fine bend
+    and a random lattice. (Suzanne's normals are left out: the shading bound turns 18 of them,
+    test_shading_normals_are_turned_only_where_the_geometry_cannot_follow.)"""
+    mesh = load(name)
+    for lattice in (lattice_for(mesh, **LATTICES["twist"]), lattice_for(mesh, **LATTICES["fine-bend"]),
+                    _random_moderate(mesh, 7)):
+        for level in (1, 3):
+            geo, angle = vertex_errors(mesh, lattice, level)
+            assert geo < VERTEX_BOUND[0], (level, geo)
+            if name != "suzanne":
+                assert angle < VERTEX_BOUND[1], (level, angle)
 
 
 # ----------------------------------------------------------------------------------------
@@ -248,7 +377,9 @@ def test_shading_normals_are_turned_only_where_the_geometry_cannot_follow():
     cos = np.einsum("tkc,tc->tk", n, own)
     far = (cos < np.cos(np.radians(60))).any(axis=1)
     assert far.sum() == 6 and (cos[far] < np.cos(np.radians(53.14))).all()
-    assert d.plan.turned_normals == 18 and d.plan.turned_sub_normals == 0
+    # Every corner of those triangles is past the cone (above), and only those are turned (the
+    # loop below checks every other corner keeps its normal).
+    assert d.plan.turned_normals == 3 * int(far.sum()) and d.plan.turned_sub_normals == 0
     # Level 1: output triangle i is patch i; its corners at input vertices.
     tri, bary = d.plan.patch_sources()
     at_input = np.isclose(bary, 1.0, atol=1e-12)  # (P, 3 corners, 3 weights)

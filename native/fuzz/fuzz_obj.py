@@ -85,9 +85,10 @@ class Target:
 
     def compare_readers(self, data):
         """Differential: where the fast reader takes a file, the slow one reads the same."""
-        text = data.decode("utf-8", errors="replace")
-        if text.startswith("\ufeff"):
-            text = text[1:]
+        try:
+            text = self.io._decode(data, "x")
+        except ValueError:  # NUL characters: refused before either reader runs
+            return
         fast = self.io._read_fast(text, "x")
         if fast is None:
             return

@@ -98,8 +98,47 @@ TEST(FitMatrix, ReproducesCubicPatches) {
   }
 }
 
-TEST(FitMatrix, Deterministic) {
-  FitTables a = build_fit_tables(6), b = build_fit_tables(6);
-  EXPECT_EQ(a.M_r, b.M_r);
-  EXPECT_EQ(a.numerator, b.numerator);
+// The fit is the constrained least-squares optimum (Eqs. 4-11), checked from its definition
+// with a basis written out here (not bezier.hpp's): for arbitrary samples s, the control
+// points b = M_r s interpolate the 9 constraint samples, and the centre b111 (the one free
+// control point) leaves a residual orthogonal to its basis function over the fitting points,
+// sum_k B111(u_k) (sum_q B_q(u_k) b_q - s_k) = 0.
+TEST(FitMatrix, IsTheConstrainedLeastSquaresOptimum) {
+  const int exponents[10][3] = {{3, 0, 0}, {0, 3, 0}, {0, 0, 3}, {2, 1, 0}, {1, 2, 0},
+                                {0, 2, 1}, {0, 1, 2}, {1, 0, 2}, {2, 0, 1}, {1, 1, 1}};
+  const double factorial[4] = {1, 1, 2, 6};
+  auto bernstein = [&](const double u[3], int q) {
+    const int* e = exponents[q];
+    return 6.0 / (factorial[e[0]] * factorial[e[1]] * factorial[e[2]]) *
+           std::pow(u[0], e[0]) * std::pow(u[1], e[1]) * std::pow(u[2], e[2]);
+  };
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> U(-1, 1);
+  for (int n = 3; n <= 15; ++n) {
+    FitTables ft = build_fit_tables(n);
+    const int fit = ft.columns - kConstraints;
+    for (int trial = 0; trial < 3; ++trial) {
+      std::vector<double> s(ft.columns);
+      for (double& v : s) v = U(rng);
+      double b[10];
+      for (int r = 0; r < 10; ++r) {
+        b[r] = 0;
+        for (int k = 0; k < ft.columns; ++k) b[r] += ft.M_r[(size_t)r * ft.columns + k] * s[k];
+      }
+      double residual_dot_centre = 0, scale = 0;
+      for (int k = 0; k < ft.columns; ++k) {
+        double u[3];
+        for (int i = 0; i < 3; ++i) u[i] = ft.numerator[3 * k + i] / (3.0 * n);
+        double x = 0;
+        for (int q = 0; q < 10; ++q) x += bernstein(u, q) * b[q];
+        if (k >= fit) {
+          EXPECT_NEAR(x, s[k], 1e-10) << "n=" << n << " constraint " << k - fit;
+        } else {
+          residual_dot_centre += bernstein(u, kCentre) * (x - s[k]);
+          scale += bernstein(u, kCentre) * std::fabs(s[k]);
+        }
+      }
+      EXPECT_NEAR(residual_dot_centre, 0.0, 1e-10 * scale) << "n=" << n;
+    }
+  }
 }

@@ -10,6 +10,7 @@ Writing is vectorized: the whole file is produced by a few large ``%``-format ca
 """
 from __future__ import annotations
 
+import codecs
 import contextlib
 import gzip
 import io as stdio
@@ -55,9 +56,10 @@ class ObjData(NamedTuple):
 
 
 def _open(path, mode, **kw):
-    """Text file, gzip-compressed when the name ends with .gz (large results shrink ~4x)."""
+    """A file (text unless mode has "b"), gzip-compressed when the name ends with .gz (large
+    results shrink ~4x)."""
     if path.endswith(".gz"):  # level 6: most of level 9's ratio at a fraction of its time
-        return gzip.open(path, mode + "t", compresslevel=6, **kw)
+        return gzip.open(path, mode if "b" in mode else mode + "t", compresslevel=6, **kw)
     return open(path, mode, **kw)
 
 
@@ -98,15 +100,19 @@ def _error(path, lineno, msg):
     return ValueError(f"{path}:{lineno}: {msg}")
 
 
-# One grammar for both readers: lines end at \n, \r\n or \r; tokens are separated by spaces and
-# tabs; a number is ASCII decimal notation (no "1_000", no other scripts' digits, no "inf" or
+# One grammar for both readers: lines end at \n, \r\n or \r, and a backslash at the end of a
+# line continues it on the next; tokens are separated by spaces, tabs and the other ASCII
+# control characters but NUL (a form feed, say: Blender's importer separates tokens by all of
+# them); a number is ASCII decimal notation (no "1_000", no other scripts' digits, no "inf" or
 # "nan"); an index is an ASCII integer, optionally negative.
 _NUM = r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
 _NUMBERS = re.compile(rf"(?:{_NUM}(?: {_NUM})*)?")
 _NUMBER = re.compile(_NUM)
 _INTEGERS = re.compile(r"(?:-?[0-9]+(?: -?[0-9]+)*)?")
 _INTEGER = re.compile(r"-?[0-9]+")
-_BLANKS = re.compile(r"[ \t]+")
+_BLANK = " " + "".join(map(chr, range(1, 0x20))).replace("\n", "").replace("\r", "")
+_BLANKS = re.compile(f"[{re.escape(_BLANK)}]+")
+_CONTINUED = re.compile(r"(?:[^\n]*\\\n)+[^\n]*")
 # The fast reader takes printable ASCII, tabs and newlines only (and no "_"); anything else goes
 # to the slow reader, which applies the grammar above token by token.
 _PLAIN = bytes(range(0x20, 0x7f)).replace(b"_", b"") + b"\t\n"
@@ -127,8 +133,18 @@ def _lines(text):
 
 
 def _tokens(line):
-    line = line.strip(" \t")
+    line = line.strip(_BLANK)
     return _BLANKS.split(line) if line else []
+
+
+def _join_continued(text):
+    """Lines ending in a backslash joined with the next (the backslash and the line end become
+    a blank); as many empty lines follow a joined line as it absorbed, so later lines keep
+    their numbers in error messages."""
+    if "\\\n" not in text and "\\\r" not in text:
+        return text
+    text = text.replace("\r\n", "\n").replace("\r", "\n")
+    return _CONTINUED.sub(lambda m: m[0].replace("\\\n", " ") + "\n" * m[0].count("\\\n"), text)
 
 
 def _tokens_per_line_are(lines, n):
@@ -155,8 +171,13 @@ def _floats(tokens, lines, per_line, path, what):
         return np.zeros((0, per_line))
     if not _NUMBERS.fullmatch(" ".join(tokens)):
         i = next(i for i, tok in enumerate(tokens) if not _NUMBER.fullmatch(tok))
-        kind = "non-finite" if tokens[i].lower().lstrip("+-") in ("inf", "infinity", "nan") else "non-numeric"
-        raise _error(path, lines[i // per_line], f"{kind} {what} value {_show(tokens[i])}")
+        tok = tokens[i]
+        kind = "non-finite" if tok.lower().lstrip("+-") in ("inf", "infinity", "nan") else "non-numeric"
+        msg = f"{kind} {what} value {_show(tok)}"
+        if _MISPLACED_SIGN.fullmatch(tok):
+            e = tok.lower().index("e")
+            msg += f" (an exponent's sign follows the e: {tok[:e - 1]}{tok[e]}{tok[e - 1]}{tok[e + 1:]})"
+        raise _error(path, lines[i // per_line], msg)
     arr = np.array(tokens, dtype=np.float64)
     bad = ~np.isfinite(arr)
     if bad.any():
@@ -252,15 +273,16 @@ def read_obj(path) -> ObjData:
 
     Mixed files: if only some corners have ``vn``, normals are dropped (``None``, so the core
     computes smooth ones) with a warning; if only some have ``vt``, the others get UV (0, 0).
+    ``vt`` or ``vn`` indices in a file that defines no ``vt`` or no ``vn`` are ignored, with a
+    warning (as Blender's importer ignores them).
     """
     path = os.fspath(path)
     try:
-        with _open(path, "r", encoding="utf-8", errors="replace") as fh:
-            text = fh.read()
+        with _open(path, "rb") as fh:
+            raw = fh.read()
     except (EOFError, gzip.BadGzipFile, zlib.error) as e:
         raise ValueError(f"{path}: damaged or truncated gzip file ({e})") from None
-    if text.startswith("\ufeff"):  # a UTF-8 byte order mark is not part of the first line
-        text = text[1:]
+    text = _join_continued(_decode(raw, path))
     # Two readers: a vectorized one for the common, clean case, and a line-by-line one that
     # handles every oddity and names the line of an error. The fast one gives up (None) on
     # anything unusual, so both always agree.
@@ -268,6 +290,36 @@ def read_obj(path) -> ObjData:
     if data is None:
         data = _read_slow(text, path)
     return data
+
+
+# Byte order marks: the encoding they name, longest first (UTF-32 LE's starts like UTF-16 LE's).
+_BOMS = ((codecs.BOM_UTF32_LE, "utf-32-le"), (codecs.BOM_UTF32_BE, "utf-32-be"),
+         (codecs.BOM_UTF8, "utf-8"), (codecs.BOM_UTF16_LE, "utf-16-le"),
+         (codecs.BOM_UTF16_BE, "utf-16-be"))
+
+
+def _decode(raw, path):
+    """The file's text: UTF-8, or what a byte order mark names (UTF-8, UTF-16 or UTF-32, as
+    Windows tools write them); the mark is not part of the first line. Bytes that do not
+    decode become U+FFFD (they can only matter in names and comments: numbers are ASCII). A
+    NUL character is refused by name: it is what UTF-16 or UTF-32 text without a byte order
+    mark, or a file that is not text at all, looks like when read as UTF-8."""
+    encoding = "utf-8"
+    for bom, name in _BOMS:
+        if raw.startswith(bom):
+            raw, encoding = raw[len(bom):], name
+            break
+    text = raw.decode(encoding, errors="replace")
+    nul = text.find("\0")
+    if nul >= 0:
+        line = len(_lines(text[:nul]))
+        raise _error(path, line, f"NUL character in {encoding.upper()} text: UTF-16 or UTF-32 "
+                     "without a byte order mark, or not a text file (save it as UTF-8)")
+    return text
+
+
+# A number with its exponent's sign before the "e" ("3.1+e2" for 3.1e+2).
+_MISPLACED_SIGN = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)[+-][eE][0-9]+")
 
 
 # Lines the regexes of the fast path would skip silently: indented lines and bare keywords.
@@ -429,6 +481,13 @@ def _read_slow(text, path):
         c = int(np.flatnonzero(~present[:, 0])[0])
         raise _error(path, corner_line(c),
                      f"vertex index 0 in corner {toks[c]!r} (OBJ indices start at 1)")
+    for s in (1, 2):
+        # Texture coordinate or normal indices in a file that defines none are ignored, as
+        # Blender's importer ignores them (exporters that write "f 1//1" regardless exist).
+        if totals[s] == 0 and present[:, s].any():
+            warnings.warn(f"{path}: face corners refer to {names[s]}s, but the file defines "
+                          f"none; ignoring those indices")
+            present[:, s] = False
     for s in range(3):
         so_far = counts[s][corner_face]
         # Positive indices may refer forward (many writers rely on it); negative ones count

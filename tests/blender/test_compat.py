@@ -71,6 +71,9 @@ class Group34:
         self.outputs = Sockets34("Output", counter)
     # No `interface`: 4.0 added it.
 
+    def as_pointer(self):   # bpy_struct.as_pointer: the address, which keys compat's caches
+        return id(self)
+
 
 class Item40:
     """4.0+ NodeTreeInterfaceSocket / NodeTreeInterfacePanel."""
@@ -104,6 +107,9 @@ class Group40:
         self.name = name
         self.interface = Interface40()
     # No `inputs` / `outputs`: removed in 4.0.
+
+    def as_pointer(self):
+        return id(self)
 
 
 class IDPropModifier:

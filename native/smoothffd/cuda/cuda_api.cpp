@@ -197,7 +197,14 @@ sffd_cuda_api make_api() noexcept {
 
 }  // namespace
 
-extern "C" __attribute__((visibility("default"))) const sffd_cuda_api* sffd_cuda_api_v1(void) {
+// The library's one exported name (Linux: the version script hides the rest as well).
+#if defined(_WIN32)
+#define SFFD_CUDA_EXPORT __declspec(dllexport)
+#else
+#define SFFD_CUDA_EXPORT __attribute__((visibility("default")))
+#endif
+
+extern "C" SFFD_CUDA_EXPORT const sffd_cuda_api* sffd_cuda_api_v1(void) {
   static const sffd_cuda_api api = make_api();
   return &api;
 }

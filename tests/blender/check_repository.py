@@ -17,6 +17,9 @@ from check_install import installed_checks, report  # noqa: E402
 def main():
     repo_dir = sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv else sys.argv[1]
     url = pathlib.Path(os.path.abspath(repo_dir), "index.json").as_uri()   # file:///... on every system
+    # Installing from a remote repository asks for online access, as the preferences' prompt
+    # does (a file:// repository then reads the shared folder, nothing goes online).
+    bpy.context.preferences.system.use_online_access = True
     repos = bpy.context.preferences.extensions.repos
     r_add = bpy.ops.preferences.extension_repo_add(name="Studio", remote_url=url, type='REMOTE')
     index = next((i for i, r in enumerate(repos) if r.remote_url == url), None)

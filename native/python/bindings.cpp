@@ -431,8 +431,9 @@ PYBIND11_MODULE(_core, m) {
         "bytes of a plan, one frame's buffers and one per-corner result (build_plan's memory_limit check)");
 
   m.def("cpu_isa", &cpu_isa,
-        "the CPU evaluator's default per-frame code path on this CPU: 'x86-64-v3' (AVX2 + FMA, "
-        "chosen by CPUID) or the baseline 'x86-64-v2'; CpuEvaluator(..., isa=...) picks one");
+        "the CPU evaluator's default per-frame code path on this CPU: on x86-64 'x86-64-v3' "
+        "(AVX2 + FMA, chosen by CPUID) or the baseline 'x86-64-v2'; on 64-bit Arm 'armv8-a' "
+        "(NEON, the only path); CpuEvaluator(..., isa=...) picks one");
   py::class_<CpuEvaluator, std::shared_ptr<CpuEvaluator>>(m, "CpuEvaluator")
       .def(py::init([](std::shared_ptr<Plan> plan, int threads, const std::string& isa) {
              return interruptible([&] { return std::make_shared<CpuEvaluator>(plan, threads, isa); });

@@ -4,8 +4,9 @@ both CUDA paths.
 The plan does the geometry work (fold bound, shading bound, flat faces, clip snapping, local
 knot coordinates), the evaluators read it; these tests check that the GPU delivers what the
 CPU tests in test_real_meshes.py check there, on the same meshes and lattices:
-- both paths agree with the CPU evaluator on the same plan (positions to 1e-5 of the mesh's
-  diagonal, each render vertex's normal to 1e-4 rad), every output element written;
+- both paths agree with the CPU evaluator on the same plan (positions to 1e-6 of the mesh's
+  diagonal, each render vertex's normal to 1.2e-5 rad: 3x the float rounding measured on an
+  H200, AGREE), every output element written;
 - the CUDA result has no reversed triangle, flat faces on the exact FFD of their flat
   input, and a flat-shaded input comes back exactly at rest, within the CPU tests'
   bounds (test_real_meshes.flat_bound: 3x what the product measures);
@@ -29,6 +30,11 @@ _USABLE, _WHY = smoothffd.cuda_status()
 pytestmark = pytest.mark.skipif(not _USABLE, reason=f"no usable CUDA device: {_WHY}")
 
 PATHS = ("fused", "cublas")
+# CUDA against the CPU evaluator on the same plan, as measured (H200, sm_90; the corpus, the
+# three lattices and the shifted knots, levels 1, 3, 6, both paths): positions 3.3e-7 of the
+# diagonal (the figure), render normals 4.0e-6 rad (the torus, fine bend, level 6; 6.1e-7
+# elsewhere). The bounds are 3x that: float rounding, which differs between the two.
+AGREE = (1e-6, 1.2e-5)
 LEVELS = (1, 3, 6)
 
 
@@ -54,8 +60,8 @@ def _agree(mesh, lattice, level, path):
     size = np.linalg.norm(np.ptp(mesh.positions, axis=0))
     dp = np.abs(pg.astype(np.float64) - pc).max() / size
     da = test_cuda.angles(rg.astype(np.float64), rnc.astype(np.float64)).max()
-    assert dp <= 1e-5, f"level {level}: positions differ by {dp:.2e} of the diagonal"
-    assert da <= 1e-4, f"level {level}: normals differ by {da:.2e} rad"
+    assert dp <= AGREE[0], f"level {level}: positions differ by {dp:.2e} of the diagonal"
+    assert da <= AGREE[1], f"level {level}: normals differ by {da:.2e} rad"
     _core._testing.poison(ev)
     pgc, ngc, _ = ev.evaluate(vals)
     _, rtri = plan.render_vertices()

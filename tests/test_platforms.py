@@ -8,9 +8,8 @@ wherever this Linux x86-64 machine can, and checked without running where it can
   and a modifier works. CPython 3.13's wheel has no Windows interpreter here: every name it
   imports from python313.dll is one that 3.13's headers declare.
 * Linux aarch64: the cp311 wheel installed into Debian 12's arm64 Python 3.11 (its own numpy
-  and pytest) under qemu-aarch64; a bounded subset of the core's suites runs there (emulation
-  is about 20 times slower), chosen so that every aarch64-specific path runs: the module's
-  load, the vector code of the per-frame stages and the worker threads.
+  and pytest) under qemu-aarch64; the core's suites run there (about a minute emulated): the
+  module's load, the NEON code of the per-frame stages, the worker threads, the command line.
 * macOS arm64 and x86-64: the Mach-O module's CPU, minimum macOS version, code signature
   (arm64), the libraries it loads (the system's only) and its undefined symbols (the system
   libraries' or, looked up in the interpreter at load time, Python's, each declared by that
@@ -47,9 +46,6 @@ INSTALLED = os.environ.get("SMOOTHFFD_TEST_INSTALLED") == "1"
 WINE = "/usr/lib/wine/wine64"
 # The core's suites that run on every platform (the cp313 wheel runs the same set natively).
 CORE_SUITES = ["test_deform_basics.py", "test_lattices.py", "test_cli.py", "test_sphere_and_sharp.py"]
-# Under qemu-aarch64: the module's own paths (load, both layouts, threads, every kind of frame)
-# without the long accuracy sweeps.
-ARM64_SUITES = ["test_deform_basics.py", "test_lattices.py"]
 
 
 def _missing(what):
@@ -300,7 +296,7 @@ def test_arm64_wheel_under_qemu(tmp_path):
 def test_arm64_core_suites_under_qemu(tmp_path):
     root = _arm64_root()
     site = _install(_wheel("cp311", "manylinux_2_28_aarch64"), tmp_path)
-    args = ["-m", "pytest", "-q", "-p", "no:cacheprovider", "-ra"] + [str(ROOT / "tests" / s) for s in ARM64_SUITES]
+    args = ["-m", "pytest", "-q", "-p", "no:cacheprovider", "-ra"] + [str(ROOT / "tests" / s) for s in CORE_SUITES]
     r = _qemu(root, args, site, tmp_path, 2400)
     tail = (r.stdout + r.stderr)[-4000:]
     assert r.returncode == 0, tail

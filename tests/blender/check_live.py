@@ -288,6 +288,45 @@ def check_points(name, obj, mod, ro, fn, sent):
             np.array_equal(shown, T.positions(ro.data)), f"{len(shown)} vertices")
 
 
+def live_editing_without_cheap_normals():
+    """3.4-4.4 (Blender shades the viewport's dense mesh from its geometry): live editing
+    forced on changes nothing. Every viewport edit is positions only, as without it; no settle
+    timer is scheduled and the timer, run anyway, computes nothing."""
+    obj, lat, ref, mod = scene("suzanne")
+    live, settle_after = modifier_update.LIVE, modifier_update._settle_after[0]
+    modifier_update.LIVE = True
+
+    def calls(fn):
+        before = dict(modifier_update.deform_calls)
+        fn()
+        return {k: modifier_update.deform_calls[k] - before[k] for k in before}
+
+    def move(dz):
+        def fn():
+            lat.data.points[4].co_deform.z += dz
+            T.update()
+        return fn
+
+    try:
+        fast = {"normals": 0, "positions_only": 1}
+        for i, dz in enumerate((0.1, 0.1, 0.05)):
+            n = calls(move(dz))
+            T.check(f"live on, 3.4-4.4: edit {i + 1} in a row is positions only", n == fast, str(n))
+        parity("live on, 3.4-4.4: parity", obj, lat, ref, mod)
+        T.check("live on, 3.4-4.4: no settle timer scheduled",
+                modifier_update._settle_after[0] == settle_after
+                and not bpy.app.timers.is_registered(modifier_update.settle))
+        n = calls(lambda: modifier_update.settle())
+        T.check("live on, 3.4-4.4: the settle timer computes nothing",
+                n == {"normals": 0, "positions_only": 0}, str(n))
+        n = calls(lambda: modifier_update.update_modifier(obj, mod, bpy.context.evaluated_depsgraph_get(),
+                                                          render=True, force=True))
+        T.check("live on, 3.4-4.4: render is exact while changing",
+                n == {"normals": 1, "positions_only": 0}, str(n))
+    finally:
+        modifier_update.LIVE = live
+
+
 def test_live_editing():
     """4.5+ viewport (modifier_update.LIVE, forced on here: background mode runs no timers):
     while the result keeps changing (results less than SETTLE apart) positions only and
@@ -295,7 +334,7 @@ def test_live_editing():
     equal to those of an exact update of the same inputs. Exact Normals, render and LIVE off
     stay exact; an update that changes nothing computes nothing."""
     if not compat.CHEAP_EXACT_NORMALS:
-        T.check("live editing: 3.4-4.4 viewport is positions-only anyway", True)
+        live_editing_without_cheap_normals()
         return
     obj, lat, ref, mod = scene("suzanne")
     st = modifier_update.state_of(obj, mod)

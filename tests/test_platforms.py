@@ -117,6 +117,18 @@ def _compare_case(theirs, here):
     assert float(np.abs(a.corner_normals - b.corner_normals).max()) <= 2e-5
 
 
+def _core_suites_args():
+    """pytest's arguments for the core's suites, from the source tree's tests/."""
+    return ["-m", "pytest", "-q", "-p", "no:cacheprovider", "-ra"] + [str(ROOT / "tests" / s) for s in CORE_SUITES]
+
+
+def _assert_suites_passed(r):
+    tail = (r.stdout + r.stderr)[-4000:]
+    assert r.returncode == 0, tail
+    assert re.search(r"\d+ passed", r.stdout), tail
+    print(tail.strip().splitlines()[-1])
+
+
 # --- Windows under Wine -----------------------------------------------------------------------
 
 def _windows_python(tag):
@@ -155,12 +167,7 @@ def test_windows_core_suites_under_wine(tmp_path):
     """The core's suites from the installed cp311 wheel, in Windows' CPython 3.11."""
     py = _windows_python("311")
     site = _install(_wheel("cp311", "win_amd64"), tmp_path)
-    args = ["-m", "pytest", "-q", "-p", "no:cacheprovider", "-ra"] + [str(ROOT / "tests" / s) for s in CORE_SUITES]
-    r = _wine(py, args, site, tmp_path, 1800)
-    tail = (r.stdout + r.stderr)[-4000:]
-    assert r.returncode == 0, tail
-    assert re.search(r"\d+ passed", r.stdout), tail
-    print(tail.strip().splitlines()[-1])
+    _assert_suites_passed(_wine(py, _core_suites_args(), site, tmp_path, 1800))
 
 
 def _bpy_under_wine(script, arg, tmp_path):
@@ -296,12 +303,7 @@ def test_arm64_wheel_under_qemu(tmp_path):
 def test_arm64_core_suites_under_qemu(tmp_path):
     root = _arm64_root()
     site = _install(_wheel("cp311", "manylinux_2_28_aarch64"), tmp_path)
-    args = ["-m", "pytest", "-q", "-p", "no:cacheprovider", "-ra"] + [str(ROOT / "tests" / s) for s in CORE_SUITES]
-    r = _qemu(root, args, site, tmp_path, 2400)
-    tail = (r.stdout + r.stderr)[-4000:]
-    assert r.returncode == 0, tail
-    assert re.search(r"\d+ passed", r.stdout), tail
-    print(tail.strip().splitlines()[-1])
+    _assert_suites_passed(_qemu(root, _core_suites_args(), site, tmp_path, 2400))
 
 
 # --- macOS: checked without running -----------------------------------------------------------

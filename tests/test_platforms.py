@@ -98,6 +98,17 @@ def _case_here(tmp_path):
     return out
 
 
+def _run_case(run, tmp_path):
+    """CASE run by `run(args)` (another platform's interpreter) into tmp_path/there; its
+    result and that folder."""
+    out = tmp_path / "there"
+    out.mkdir()
+    (tmp_path / "case.py").write_text(CASE)
+    r = run([str(tmp_path / "case.py"), str(out)])
+    assert r.returncode == 0, r.stdout + r.stderr
+    return r, out
+
+
 def _compare_case(theirs, here):
     """The other platform's command line did what this one did."""
     rc_ok, rc_bad, msg = (theirs / "case.txt").read_text().splitlines()
@@ -152,11 +163,7 @@ def test_windows_wheel_under_wine(tag, tmp_path):
     py = _windows_python(tag)
     wheel = _wheel(f"cp{tag}", "win_amd64")
     site = _install(wheel, tmp_path)
-    out = tmp_path / "win"
-    out.mkdir()
-    (tmp_path / "case.py").write_text(CASE)
-    r = _wine(py, [str(tmp_path / "case.py"), str(out)], site, tmp_path, 600)
-    assert r.returncode == 0, r.stdout + r.stderr
+    r, out = _run_case(lambda args: _wine(py, args, site, tmp_path, 600), tmp_path)
     assert "cpu_isa x86-64-v" in r.stdout, r.stdout
     # The memory check before a plan asks Windows (GlobalMemoryStatusEx): a positive number.
     assert int(re.search(r"memory (\S+)", r.stdout).group(1)) > 0, r.stdout
@@ -291,11 +298,7 @@ def _qemu(root, args, site, cwd, timeout):
 def test_arm64_wheel_under_qemu(tmp_path):
     root = _arm64_root()
     site = _install(_wheel("cp311", "manylinux_2_28_aarch64"), tmp_path)
-    out = tmp_path / "arm64"
-    out.mkdir()
-    (tmp_path / "case.py").write_text(CASE)
-    r = _qemu(root, [str(tmp_path / "case.py"), str(out)], site, tmp_path, 1200)
-    assert r.returncode == 0, r.stdout + r.stderr
+    r, out = _run_case(lambda args: _qemu(root, args, site, tmp_path, 1200), tmp_path)
     assert "cpu_isa armv8-a" in r.stdout, r.stdout
     _compare_case(out, _case_here(tmp_path))
 

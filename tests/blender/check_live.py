@@ -207,11 +207,6 @@ def test_positions_only_path():
     st = modifier_update.state_of(obj, mod)
     ro = modifier_update.result_object(obj, mod, create=False)
 
-    def calls(fn):
-        before = dict(modifier_update.deform_calls)
-        fn()
-        return {k: modifier_update.deform_calls[k] - before[k] for k in before}
-
     def move(dz=0.15):
         def fn():
             lat.data.points[4].co_deform.z += dz
@@ -228,7 +223,7 @@ def test_positions_only_path():
     viewport = {"normals": 1, "positions_only": 0} if compat.CHEAP_EXACT_NORMALS else \
         {"normals": 0, "positions_only": 1}
     where = "4.5+ viewport (exact)" if compat.CHEAP_EXACT_NORMALS else "3.4-4.4 viewport"
-    n = calls(move())
+    n = _deform_calls(move())
     parity(f"{where}: parity", obj, lat, ref, mod)
     T.check(f"{where}: {'normals' if compat.CHEAP_EXACT_NORMALS else 'positions only'}",
             n == viewport, str(n))
@@ -239,18 +234,18 @@ def test_positions_only_path():
                  compat.POSITIONS_THROUGH_POINTS and not compat.CHEAP_EXACT_NORMALS)
     # 4.5+: exact already, the setting changes nothing (nothing recomputed).
     none = {"normals": 0, "positions_only": 0}
-    n = calls(exact_normals(True))
+    n = _deform_calls(exact_normals(True))
     parity("Exact Normals on: parity", obj, lat, ref, mod)
     T.check("Exact Normals on: normals", n == (none if compat.CHEAP_EXACT_NORMALS else
                                                {"normals": 1, "positions_only": 0}), str(n))
     T.check("Exact Normals on: custom normals written", ro.data.has_custom_normals,
             smooth_ffd.status(mod))
     check_points("Exact Normals on", obj, mod, ro, lambda: None, False)
-    n = calls(move(-0.1))
+    n = _deform_calls(move(-0.1))
     parity("Exact Normals, lattice move: parity", obj, lat, ref, mod)
     T.check("Exact Normals, lattice move: normals", n == {"normals": 1, "positions_only": 0},
             str(n))
-    n = calls(exact_normals(False))
+    n = _deform_calls(exact_normals(False))
     parity("Exact Normals off: parity", obj, lat, ref, mod)
     check_points("Exact Normals off, moved", obj, mod, ro, move(0.05),
                  compat.POSITIONS_THROUGH_POINTS and not compat.CHEAP_EXACT_NORMALS)
@@ -259,11 +254,11 @@ def test_positions_only_path():
             n == (none if compat.CHEAP_EXACT_NORMALS else viewport), str(n))
     # Render (what the render handler and Apply call): normals, in every version.
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    n = calls(lambda: modifier_update.update_modifier(obj, mod, depsgraph, render=True, force=True))
+    n = _deform_calls(lambda: modifier_update.update_modifier(obj, mod, depsgraph, render=True, force=True))
     T.check("render update: normals", n == {"normals": 1, "positions_only": 0}, str(n))
     T.check("render update: custom normals written", ro.data.has_custom_normals)
     T.update()
-    n = calls(lambda: smooth_ffd.apply_smooth_ffd(obj, mod))
+    n = _deform_calls(lambda: smooth_ffd.apply_smooth_ffd(obj, mod))
     T.check("apply: normals", n["normals"] >= 1 and n["positions_only"] == 0, str(n))
     T.check("apply: custom normals on the applied mesh", obj.data.has_custom_normals)
 
@@ -288,6 +283,21 @@ def check_points(name, obj, mod, ro, fn, sent):
             np.array_equal(shown, T.positions(ro.data)), f"{len(shown)} vertices")
 
 
+def _deform_calls(fn):
+    """How many of each kind of core frame fn() ran."""
+    before = dict(modifier_update.deform_calls)
+    fn()
+    return {k: modifier_update.deform_calls[k] - before[k] for k in before}
+
+
+def _move(lat, dz):
+    """An edit: lattice point 4 raised by dz, then a depsgraph update."""
+    def fn():
+        lat.data.points[4].co_deform.z += dz
+        T.update()
+    return fn
+
+
 def live_editing_without_cheap_normals():
     """3.4-4.4 (Blender shades the viewport's dense mesh from its geometry): live editing
     forced on changes nothing. Every viewport edit is positions only, as without it; no settle
@@ -296,30 +306,19 @@ def live_editing_without_cheap_normals():
     live, settle_after = modifier_update.LIVE, modifier_update._settle_after[0]
     modifier_update.LIVE = True
 
-    def calls(fn):
-        before = dict(modifier_update.deform_calls)
-        fn()
-        return {k: modifier_update.deform_calls[k] - before[k] for k in before}
-
-    def move(dz):
-        def fn():
-            lat.data.points[4].co_deform.z += dz
-            T.update()
-        return fn
-
     try:
         fast = {"normals": 0, "positions_only": 1}
         for i, dz in enumerate((0.1, 0.1, 0.05)):
-            n = calls(move(dz))
+            n = _deform_calls(_move(lat, dz))
             T.check(f"live on, 3.4-4.4: edit {i + 1} in a row is positions only", n == fast, str(n))
         parity("live on, 3.4-4.4: parity", obj, lat, ref, mod)
         T.check("live on, 3.4-4.4: no settle timer scheduled",
                 modifier_update._settle_after[0] == settle_after
                 and not bpy.app.timers.is_registered(modifier_update.settle))
-        n = calls(lambda: modifier_update.settle())
+        n = _deform_calls(lambda: modifier_update.settle())
         T.check("live on, 3.4-4.4: the settle timer computes nothing",
                 n == {"normals": 0, "positions_only": 0}, str(n))
-        n = calls(lambda: modifier_update.update_modifier(obj, mod, bpy.context.evaluated_depsgraph_get(),
+        n = _deform_calls(lambda: modifier_update.update_modifier(obj, mod, bpy.context.evaluated_depsgraph_get(),
                                                           render=True, force=True))
         T.check("live on, 3.4-4.4: render is exact while changing",
                 n == {"normals": 1, "positions_only": 0}, str(n))
@@ -354,17 +353,6 @@ def test_live_editing():
 
     real_time, modifier_update.time = modifier_update.time, Clock
 
-    def calls(fn):
-        before = dict(modifier_update.deform_calls)
-        fn()
-        return {k: modifier_update.deform_calls[k] - before[k] for k in before}
-
-    def move(dz):
-        def fn():
-            lat.data.points[4].co_deform.z += dz
-            T.update()
-        return fn
-
     def normals_attribute():
         a = ro.data.attributes.get("custom_normal")
         return None if a is None else T.point_attribute(ro.data, "custom_normal")
@@ -376,23 +364,23 @@ def test_live_editing():
         wait_settled()
         exact, fast, none = ({"normals": 1, "positions_only": 0}, {"normals": 0, "positions_only": 1},
                              {"normals": 0, "positions_only": 0})
-        T.check("live: a first edit is exact", calls(move(0.1)) == exact)
+        T.check("live: a first edit is exact", _deform_calls(_move(lat, 0.1)) == exact)
         T.check("live: custom normals after it", normals_attribute() is not None)
-        n = calls(move(0.1))
+        n = _deform_calls(_move(lat, 0.1))
         T.check("live: the next edit within SETTLE is positions only", n == fast, str(n))
         parity("live: positions only: parity", obj, lat, ref, mod)
         T.check("live: no custom normals while changing", normals_attribute() is None)
         T.check("live: status says so", "from geometry normals" in smooth_ffd.status(mod),
                 smooth_ffd.status(mod))
-        n = calls(move(0.05))
+        n = _deform_calls(_move(lat, 0.05))
         T.check("live: a third edit too", n == fast, str(n))
         fast_positions = T.positions(T.evaluated_mesh(obj)).copy()
-        n = calls(T.update)
+        n = _deform_calls(T.update)
         T.check("live: an update without change computes nothing", n == none, str(n))
         # The settle timer, as a window runs it SETTLE after the last change.
         T.check("live: the timer waits while changes are recent", modifier_update.settle() is not None)
         wait_settled()
-        n = calls(lambda: T.check("live: the timer then stops", modifier_update.settle() is None))
+        n = _deform_calls(lambda: T.check("live: the timer then stops", modifier_update.settle() is None))
         T.check("live: the settle update is exact", n == exact, str(n))
         settled = T.positions(T.evaluated_mesh(obj))
         T.check("live: settled positions = the live ones (bitwise)",
@@ -401,28 +389,28 @@ def test_live_editing():
         T.check("live: custom normals after settling", settled_normals is not None)
         # The same inputs computed exact from scratch: the same normals.
         modifier_update.forget(obj, mod)
-        n = calls(lambda: smooth_ffd.update(obj, mod, force=True))
+        n = _deform_calls(lambda: smooth_ffd.update(obj, mod, force=True))
         T.check("live: settled normals = a fresh exact update's",
                 settled_normals is not None and np.array_equal(settled_normals, normals_attribute()),
                 str(n))
         wait_settled()
-        calls(move(0.1))
-        n = calls(lambda: modifier_update.update_modifier(obj, mod, bpy.context.evaluated_depsgraph_get(),
+        _deform_calls(_move(lat, 0.1))
+        n = _deform_calls(lambda: modifier_update.update_modifier(obj, mod, bpy.context.evaluated_depsgraph_get(),
                                                           render=True, force=True))
         T.check("live: render is exact while changing", n == exact, str(n))
         T.update()
         wait_settled()
         compat.set_modifier_input(mod, "Exact Normals", True)
         obj.update_tag()
-        calls(T.update)
-        n = calls(move(-0.1))
+        _deform_calls(T.update)
+        n = _deform_calls(_move(lat, -0.1))
         T.check("live: Exact Normals stays exact while changing", n == exact, str(n))
         compat.set_modifier_input(mod, "Exact Normals", False)
         obj.update_tag()
         T.update()
         modifier_update.LIVE = False
-        calls(move(0.1))
-        n = calls(move(0.1))
+        _deform_calls(_move(lat, 0.1))
+        n = _deform_calls(_move(lat, 0.1))
         T.check("live off (background default): exact while changing", n == exact, str(n))
         # A window registers the settle timer; disabling the add-on drops it.
         bpy.app.timers.register(modifier_update.settle, first_interval=60)

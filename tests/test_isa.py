@@ -150,7 +150,11 @@ def test_under_emulated_cpu(cpu, isa, tmp_path, python_cmd, module_root, native_
     script = tmp_path / "deform_small.py"
     script.write_text(DEFORM + MAIN)
     out_file = tmp_path / "out.npy"
-    env = dict(os.environ, PYTHONPATH=module_root, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    # numpy's OpenBLAS is told the emulated CPU: an OPENBLAS_CORETYPE inherited from the host
+    # (Haswell, say) would make numpy itself run AVX2 kernels under -cpu Nehalem and die.
+    env = {k: v for k, v in os.environ.items() if not k.startswith("OPENBLAS_")}
+    env.update(PYTHONPATH=module_root, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1",
+               OPENBLAS_CORETYPE=cpu)
     r = subprocess.run([QEMU, "-cpu", cpu, *python_cmd, str(script), str(out_file)],
                        capture_output=True, text=True, env=env, timeout=600)
     assert r.returncode == 0, (f"qemu -cpu {cpu}: exit {r.returncode} (-4: SIGILL, an instruction "

@@ -64,3 +64,11 @@ def pytest_make_collect_report(collector):
     elif report.passed and not report.result:
         report.outcome = "failed"
         report.longrepr = f"{report.nodeid}: collected no tests"
+
+
+def pytest_terminal_summary(terminalreporter):
+    """The GPU suites' worst CUDA-vs-CPU differences of this run, next to their bounds."""
+    agreement = sys.modules.get("agreement")
+    if agreement is not None and agreement.WORST:
+        for line in agreement.summary():
+            terminalreporter.write_line(line)

@@ -10,6 +10,7 @@ The CUDA half runs where a GPU is (e.g. an H100)."""
 import numpy as np
 import pytest
 
+import agreement
 import meshes
 import smoothffd
 from smoothffd import _core
@@ -43,7 +44,7 @@ def cases():
     return out
 
 
-def check_against_corners(compact, corners, plan, level, exact_owner=True):
+def check_against_corners(compact, corners, plan, level):
     np.testing.assert_array_equal(compact.positions, corners.positions)
     rtri = compact.render_triangles
     assert compact.normals.shape == (plan.render_vertex_count, 3)
@@ -57,10 +58,7 @@ def check_against_corners(compact, corners, plan, level, exact_owner=True):
     patch_of_triangle = np.arange(plan.output_triangles) // (level * level)
     own = owner[rtri] == patch_of_triangle[:, None]
     assert own.any()
-    if exact_owner:
-        np.testing.assert_array_equal(gathered[own], corners.corner_normals[own])
-    else:
-        assert angles(gathered[own], corners.corner_normals[own]).max() <= 1e-4
+    np.testing.assert_array_equal(gathered[own], corners.corner_normals[own])
     # Other corners: the same normal class (plan's sharp angle, 1 degree), in practice far closer.
     ang = angles(gathered, corners.corner_normals).max()
     assert ang <= np.radians(1.0), f"corner normals differ from their render vertex by {ang:.2e} rad"
@@ -139,8 +137,8 @@ def test_cuda_compact_matches_corners_and_cpu(name, mesh, lat, level):
     np.testing.assert_array_equal(compact.positions, corners.positions)
     np.testing.assert_array_equal(compact.corner_normals(), corners.corner_normals)
     cpu = smoothffd.Deformer(mesh, lat, level=level, device="cpu").deform(layout="compact")
-    assert np.abs(compact.positions.astype(np.float64) - cpu.positions).max() <= 1e-5 * SIZE
-    assert angles(compact.normals, cpu.normals).max() <= 1e-4
+    assert agreement.positions(compact.positions, cpu.positions, SIZE) <= agreement.POSITIONS
+    assert agreement.normals(compact.normals, cpu.normals) <= agreement.NORMALS
 
 
 @pytest.mark.skipif(not _USABLE, reason=f"no usable CUDA device: {_WHY}")

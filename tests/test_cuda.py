@@ -1,6 +1,6 @@
 """CUDA evaluator vs the CPU evaluator on the same plan.
 
-Positions must agree to 1e-5 of the lattice size and normals to 1e-4 rad, for random
+Positions and normals must agree within tests/agreement.py's bounds, for random
 lattices of several degrees, both lattice kinds, levels 1..16, meshes with sharp and smooth
 edges and knot-box clipping, on both paths (fused and cuBLAS) and in each of the inline
 kernel's modes (boxes, weights, global: chosen by the plan and the device's shared memory, so
@@ -18,6 +18,7 @@ import sys
 import numpy as np
 import pytest
 
+import agreement
 import meshes
 import smoothffd
 from smoothffd import _core
@@ -144,10 +145,10 @@ def check(mesh, lat, level, path, shared_memory_limit=0):
     assert pg.shape == pc.shape and ng.shape == nc.shape
     assert np.isfinite(pg).all(), f"{np.count_nonzero(~np.isfinite(pg))} positions not written"
     assert np.isfinite(ng).all(), f"{np.count_nonzero(~np.isfinite(ng))} normals not written"
-    dp = np.abs(pg.astype(np.float64) - pc).max() / SIZE
-    da = angles(ng.astype(np.float64), nc.astype(np.float64)).max()
-    assert dp <= 1e-5, f"positions differ by {dp:.2e} of the lattice size"
-    assert da <= 1e-4, f"normals differ by {da:.2e} rad"
+    dp = agreement.positions(pg, pc, SIZE)
+    da = agreement.normals(ng, nc)
+    assert dp <= agreement.POSITIONS, f"positions differ by {dp:.2e} of the lattice size"
+    assert da <= agreement.NORMALS, f"normals differ by {da:.2e} rad"
     assert times["copy_back"] >= 0 and times["host_expand"] >= 0
     assert ("sampling" in times) != ("sample_fit_tessellate" in times)  # the reference or the inline kernel
     poison(ev)
@@ -215,10 +216,10 @@ def test_point_weights_deformer_cuda_matches_cpu():
     for _ in range(3):
         rg, rc = dg.deform(lat), dc.deform(lat)
         assert rg.stats["device"] == "cuda"
-        assert np.abs(rg.positions - rc.positions).max() <= 1e-5 * SIZE
-        assert angles(rg.corner_normals, rc.corner_normals).max() <= 1e-4
+        assert agreement.positions(rg.positions, rc.positions, SIZE) <= agreement.POSITIONS
+        assert agreement.normals(rg.corner_normals, rc.corner_normals) <= agreement.NORMALS
         cg, cc = dg.deform(lat, layout="compact"), dc.deform(lat, layout="compact")
-        assert np.abs(cg.positions - cc.positions).max() <= 1e-5 * SIZE
+        assert agreement.positions(cg.positions, cc.positions, SIZE) <= agreement.POSITIONS
         lat = lat.with_points(lat.points + 0.01 * rng.standard_normal(lat.points.shape),
                               point_weights=rng.uniform(0, 1, lat.point_weights.shape))
     assert dg.plan is plan
@@ -303,8 +304,8 @@ def test_deformer_cuda_matches_cpu():
     rc = smoothffd.Deformer(mesh, lat, level=7, device="cpu").deform()
     assert rg.stats["device"] == "cuda"
     np.testing.assert_array_equal(rg.triangles, rc.triangles)
-    assert np.abs(rg.positions - rc.positions).max() <= 1e-5 * SIZE
-    assert angles(rg.corner_normals, rc.corner_normals).max() <= 1e-4
+    assert agreement.positions(rg.positions, rc.positions, SIZE) <= agreement.POSITIONS
+    assert agreement.normals(rg.corner_normals, rc.corner_normals) <= agreement.NORMALS
     auto = smoothffd.Deformer(mesh, lat, level=3, device="auto")
     assert auto.device == "cuda"
 
@@ -322,8 +323,8 @@ def test_repeated_frames_both_paths():
         vals = np.ascontiguousarray(lat.control_values().reshape(-1, 3), dtype=np.float32)
         pg, ng, _ = evs[i % 2].evaluate(vals)
         pc, nc, _ = cpu.evaluate(vals)
-        assert np.abs(pg - pc).max() <= 1e-5 * SIZE
-        assert angles(ng, nc).max() <= 1e-4
+        assert agreement.positions(pg, pc, SIZE) <= agreement.POSITIONS
+        assert agreement.normals(ng, nc) <= agreement.NORMALS
 
 
 def test_many_groups_over_frames():
@@ -339,8 +340,8 @@ def test_many_groups_over_frames():
         vals = np.ascontiguousarray(bspline(rng).control_values().reshape(-1, 3), dtype=np.float32)
         pg, ng, _ = ev.evaluate(vals)
         pc, nc, _ = cpu.evaluate(vals)
-        assert np.abs(pg - pc).max() <= 1e-5 * SIZE
-        assert angles(ng, nc).max() <= 1e-4
+        assert agreement.positions(pg, pc, SIZE) <= agreement.POSITIONS
+        assert agreement.normals(ng, nc) <= agreement.NORMALS
 
 
 def test_path_argument(monkeypatch):

@@ -4,9 +4,10 @@
 //
 // Patch p's column k (plan/fit_matrix.hpp) lies at barycentric numerators q over 3n of its
 // corners. Its sample is
-//   a corner (two numerators 0): the sub-vertex, sample v in [0, SV);
-//   on edge k (one numerator 0): one of the edge's ES inner points, the numerators over 3n
-//     along it that are multiples of 3 or n, 2n, numbered from end a: sample SV + e ES + j;
+//   at a corner (two numerators 0): the sub-vertex, sample v in [0, SV);
+//   on the patch's edge e (one numerator 0): one of the edge's ES inner points, whose
+//     numerators over 3n along it are the multiples of 3 and n, 2n, numbered j from end a:
+//     sample SV + e ES + j;
 //   inside: the patch's own, SV + E ES + p IS + (its order among the inside columns),
 //     IS = (n - 1)(n - 2) / 2.
 // So the two patches on an edge read the very same samples along it. Positions and weights are

@@ -12,9 +12,9 @@ namespace sffd {
 // weight a vertex where given.
 void check_input_mesh(const InputMesh& mesh);
 
-// A lattice structure the plan and its evaluators can hold: at most 1023 knot spans an axis
-// (Plan::sample_piece's 10 bits), 3 or 4 components, and every value of its float tables
-// (plan/lattice_tables.hpp) a finite float.
+// A lattice structure the plan and its evaluators can hold: at most 1023 polynomial pieces
+// (knot spans) an axis (Plan::sample_piece's 10 bits), 3 or 4 components, and every value of
+// its float tables (plan/lattice_tables.hpp) a finite float.
 void check_lattice_structure(const LatticeSpec& lattice);
 
 }  // namespace sffd

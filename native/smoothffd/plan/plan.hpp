@@ -3,12 +3,25 @@
 // from new control values only. All arrays are flat and row-major so that the CUDA evaluator
 // uploads them as they are.
 //
-// Pipeline of the plan build (one file each under plan/ and mesh/):
-//   triangulate polygons -> classify sharp edge ends (input split normals), flat faces ->
-//   knot-box clipping -> adjustment normals bounded so that nothing folds, crease-aware PN
-//   rest surface (clip vertices moved onto it, sec. 4.3.1) -> sub-mesh adjacency and
-//   sharpness, the bound again on the sub-mesh -> samples (sec. 5.1) -> fitting matrix M_r
-//   (Eq. 11) -> tessellation tables (Eq. 14) and the welded output topology.
+// The plan build (build_plan) is a pipeline of stages, each a function of its own under plan/
+// (and mesh/) that takes the earlier stages' results and returns its own or fills its part of
+// the Plan:
+//   validate          the input mesh and the lattice structure, before any work
+//   input_surface     polygons triangulated (mesh/triangulate), corner normals and flat faces
+//                     (corner_normals), edges and which of their ends split the normals (edges)
+//   clip              knot-box clipping: the sub-mesh of patches (checked against memory_limit)
+//   sub_vertices      adjustment normals bounded so that nothing folds, the crease-aware PN rest
+//                     surface (rest_surface), clip vertices moved onto it (sec. 4.3.1), weights
+//   sources           where each patch lies on the input
+//   patch_normals     corner normals for shading and the adjustment (4.3.2), bounded again on
+//                     the sub-mesh
+//   adjacency         the sub-mesh's edges, their patches, corner slots and flags
+//   samples           samples (sec. 5.1) and their lattice pieces; fitting matrix M_r (Eq. 11,
+//                     fit_matrix)
+//   centre_rows       each patch's centre as an affine function of the control values
+//   output_topology   tessellation tables (Eq. 14, tessellation) and the welded output topology
+//   render_vertices   output vertices duplicated where their normals split
+//   lattice_tables    the lattice structure in float, as the evaluators read it
 #pragma once
 
 #include <cstdint>

@@ -8,6 +8,17 @@
 
 namespace sffd {
 
+void build_patch_sources(Plan& plan, const InputMesh& mesh, const Triangulation& tr, const ClipResult& clip) {
+  const int P = clip.patches();
+  plan.patch_face.resize(P);
+  for (int p = 0; p < P; ++p) plan.patch_face[p] = tr.face[clip.patch_tri[p]];
+  plan.input_corners = (int)mesh.corner_vertex.size();
+  plan.input_triangle_corner = tr.corners;
+  plan.input_triangle_face = tr.face;
+  plan.patch_triangle = clip.patch_tri;
+  plan.patch_bary = clip.patch_bary;
+}
+
 void interpolate_corners(const Plan& plan, const float* values, int k, float* out, int threads) {
   if (k < 1) throw std::invalid_argument("interpolate_corners: need at least one value a corner");
   const TessellationTables tess = build_tessellation(plan.level);

@@ -3,9 +3,16 @@
 // maps, vertex groups, colours) onto the output, the way the core interpolates its UVs.
 #pragma once
 
+#include "smoothffd/mesh/triangulate.hpp"
+#include "smoothffd/plan/clip.hpp"
 #include "smoothffd/plan/plan.hpp"
 
 namespace sffd {
+
+// The plan build's stage that records them: fills plan.input_corners, input_triangle_corner,
+// input_triangle_face (the triangulation tr of mesh), patch_triangle, patch_bary (the clip's
+// pieces) and patch_face (the input face of each patch).
+void build_patch_sources(Plan& plan, const InputMesh& mesh, const Triangulation& tr, const ClipResult& clip);
 
 // values: C x k floats per input corner (k >= 1) -> out: T x 3 x k at the output corners. The
 // values at each patch's corners are interpolated in its input triangle (double, rounded to

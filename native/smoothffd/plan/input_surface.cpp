@@ -1,0 +1,21 @@
+#include "smoothffd/plan/input_surface.hpp"
+
+#include <utility>
+
+#include "smoothffd/plan/corner_normals.hpp"
+
+namespace sffd {
+
+InputSurface build_input_surface(const InputMesh& mesh, double cos_tol) {
+  Triangulation tr = triangulate_polygons(mesh.positions, mesh.corner_vertex, mesh.face_offset);
+  std::vector<int> tv(tr.corners.size());
+  for (size_t i = 0; i < tv.size(); ++i) tv[i] = mesh.corner_vertex[tr.corners[i]];
+  std::vector<double> tcn = triangle_corner_normals(mesh, tr, tv);
+  EdgeTable edges = build_edges(tv);
+  std::vector<uint8_t> sharp = classify_sharp_ends(edges, tv, tcn, cos_tol);
+  AdjustNormals adjust(mesh.positions, tv, tcn, flat_triangles(mesh, tr, tcn, cos_tol));
+  return InputSurface{std::move(tr), std::move(tv), std::move(tcn), std::move(edges), std::move(sharp),
+                      std::move(adjust)};
+}
+
+}  // namespace sffd

@@ -1,0 +1,29 @@
+// The input as a triangle mesh with the normals the plan starts from (the plan build's first
+// geometric stage): its polygons triangulated, the normals at the triangle corners, the edges
+// and which of their ends split the normals, and which triangles belong to flat faces.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "smoothffd/mesh/triangulate.hpp"
+#include "smoothffd/plan/edges.hpp"
+#include "smoothffd/plan/plan.hpp"
+#include "smoothffd/plan/rest_surface.hpp"
+
+namespace sffd {
+
+struct InputSurface {
+  Triangulation triangulation;  // #T triangles of input corners, and their faces
+  std::vector<int> tv;          // #T x 3: the triangles' vertices
+  std::vector<double> normal;   // #T x 3 x 3: unit normals at the corners (triangle_corner_normals)
+  EdgeTable edges;              // of tv
+  std::vector<uint8_t> sharp;   // #E: classify_sharp_ends of `normal` at the sharp angle
+  AdjustNormals adjust;         // the normals the geometry follows: `normal`, the triangles' own
+                                // on flat faces (flat_triangles); bounded by a later stage
+};
+
+// cos_tol: the cosine of the sharp angle (PlanOptions::sharp_angle_degrees).
+InputSurface build_input_surface(const InputMesh& mesh, double cos_tol);
+
+}  // namespace sffd

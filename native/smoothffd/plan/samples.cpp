@@ -1,0 +1,141 @@
+#include "smoothffd/plan/samples.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "smoothffd/core/cancel.hpp"
+#include "smoothffd/core/parallel.hpp"
+#include "smoothffd/plan/lattice_tables.hpp"
+
+namespace sffd {
+namespace {
+
+uint32_t pack_pieces(const int p[3]) { return uint32_t(p[0]) | uint32_t(p[1]) << 10 | uint32_t(p[2]) << 20; }
+
+}  // namespace
+
+std::vector<int> edge_sample_numerators(int n) {
+  std::vector<int> num;
+  for (int q = 1; q < 3 * n; ++q)
+    if (q % 3 == 0 || q == n || q == 2 * n) num.push_back(q);
+  return num;
+}
+
+std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVertices& sub) {
+  const int n = fit.n, K = fit.columns, N3 = 3 * n;
+  const int SV = (int)sub.weight.size(), E = (int)(plan.edge_vertex.size() / 2), P = (int)(plan.patch_vertex.size() / 3);
+  const std::vector<double>& moved = sub.position;
+  const std::vector<double>& sub_weight = sub.weight;
+  const std::vector<int> edge_num = edge_sample_numerators(n);
+  const int ES = (int)edge_num.size(), IS = (n - 1) * (n - 2) / 2;
+  auto edge_index = [&](int q) { return int(std::lower_bound(edge_num.begin(), edge_num.end(), q) - edge_num.begin()); };
+  const long long S = (long long)SV + (long long)E * ES + (long long)P * IS;
+  if (S > 2000000000LL) throw std::invalid_argument("mesh: too large for one plan");
+  plan.sample_position.resize(3 * S);
+  std::vector<double> sample_exact(3 * S);  // the positions before rounding to float
+  plan.sample_weight.resize(S);
+  auto put_sample = [&](long long s, const double* pos, double w) {
+    for (int i = 0; i < 3; ++i) {
+      plan.sample_position[3 * s + i] = (float)pos[i];
+      sample_exact[3 * s + i] = pos[i];
+    }
+    plan.sample_weight[s] = (float)w;
+  };
+  for (int v = 0; v < SV; ++v) put_sample(v, &moved[3 * (size_t)v], sub_weight[v]);
+  for (int e = 0; e < E; ++e) {
+    int a = plan.edge_vertex[2 * e], b = plan.edge_vertex[2 * e + 1];
+    for (int j = 0; j < ES; ++j) {
+      double t = edge_num[j] / double(N3), pos[3];
+      for (int i = 0; i < 3; ++i) pos[i] = (1 - t) * moved[3 * (size_t)a + i] + t * moved[3 * (size_t)b + i];
+      put_sample(SV + (long long)e * ES + j, pos, (1 - t) * sub_weight[a] + t * sub_weight[b]);
+    }
+  }
+  std::vector<int> column_interior(K, -1);
+  for (int k = 0, ord = 0; k < K; ++k) {
+    const int* q = &fit.numerator[3 * k];
+    if (q[0] > 0 && q[1] > 0 && q[2] > 0) column_interior[k] = ord++;
+  }
+  plan.patch_samples.resize((size_t)P * K);
+  CancelPoller poller(256);
+  for (int p = 0; p < P; ++p) {
+    poller.tick();
+    const int* cv = &plan.patch_vertex[3 * p];
+    for (int k = 0; k < K; ++k) {
+      const int* q = &fit.numerator[3 * k];
+      long long s;
+      int zeros = (q[0] == 0) + (q[1] == 0) + (q[2] == 0);
+      if (zeros == 2) {
+        s = cv[q[0] ? 0 : q[1] ? 1 : 2];
+      } else if (zeros == 1) {
+        int ek = q[2] == 0 ? 0 : q[0] == 0 ? 1 : 2;  // edge corner ek -> ek + 1
+        int along = q[(ek + 1) % 3];                  // numerator of the far corner
+        if (plan.patch_edge_reversed[3 * p + ek]) along = N3 - along;
+        s = SV + (long long)plan.patch_edge[3 * p + ek] * ES + edge_index(along);
+      } else {
+        s = SV + (long long)E * ES + (long long)p * IS + column_interior[k];
+        double b[3] = {q[0] / double(N3), q[1] / double(N3), q[2] / double(N3)}, pos[3], w = 0;
+        for (int i = 0; i < 3; ++i) {
+          pos[i] = 0;
+          for (int c = 0; c < 3; ++c) pos[i] += b[c] * moved[3 * (size_t)cv[c] + i];
+        }
+        for (int c = 0; c < 3; ++c) w += b[c] * sub_weight[cv[c]];
+        put_sample(s, pos, w);
+      }
+      plan.patch_samples[(size_t)p * K + k] = (int)s;
+    }
+  }
+  plan.edge_constraint.resize(2 * (size_t)E);
+  for (int e = 0; e < E; ++e) {
+    plan.edge_constraint[2 * e] = SV + e * ES + edge_index(n);
+    plan.edge_constraint[2 * e + 1] = SV + e * ES + edge_index(2 * n);
+  }
+  plan.fit_matrix.assign(fit.M_r.begin(), fit.M_r.end());
+  plan.column_bary.resize(3 * (size_t)K);
+  for (int i = 0; i < 3 * K; ++i) plan.column_bary[i] = (float)(fit.numerator[i] / double(N3));
+  plan.samples = (int)S;
+  plan.fit_degree = n;
+  plan.columns = K;
+  plan.edge_samples = ES;
+  return sample_exact;
+}
+
+bool needs_local_coordinates(const LatticeSpec& lattice, const std::vector<double>& pos) {
+  double R = 0;
+  for (double x : pos) R = std::max(R, std::fabs(x));
+  for (int a = 0; a < 3; ++a) {
+    const double* A = lattice.object_to_param[a];
+    const double G = std::fabs(A[0]) + std::fabs(A[1]) + std::fabs(A[2]);
+    const double shift = float_shift(lattice.axes[a]);
+    for (const AxisPiece& pc : lattice.axes[a].pieces()) {
+      if (pc.degree == 0) continue;
+      const double err = G * R + std::fabs(A[3] - shift) + std::fabs(pc.origin - shift);
+      if (err > std::ldexp(pc.scale, 13)) return true;
+    }
+  }
+  return false;
+}
+
+void locate_samples(Plan& plan, const LatticeSpec& lattice, const std::vector<double>& sample_exact) {
+  const long long S = (long long)(sample_exact.size() / 3);
+  const bool local = needs_local_coordinates(lattice, sample_exact);
+  plan.sample_piece.resize(S);
+  if (local) plan.sample_local.resize(3 * S);
+  parallel_for(S, default_threads(), [&](long long b, long long e) {
+    for (long long s = b; s < e; ++s) {
+      double pos[3], prm[3];
+      int pc[3];
+      for (int i = 0; i < 3; ++i) pos[i] = local ? sample_exact[3 * s + i] : plan.sample_position[3 * s + i];
+      lattice.to_param(pos, prm);
+      lattice.find_pieces(prm, pc);
+      plan.sample_piece[s] = pack_pieces(pc);
+      if (local)
+        for (int a = 0; a < 3; ++a) {
+          const AxisPiece& piece = lattice.axes[a].pieces()[pc[a]];
+          plan.sample_local[3 * s + a] = piece.degree == 0 ? 0.0f : (float)((prm[a] - piece.origin) / piece.scale);
+        }
+    }
+  });
+}
+
+}  // namespace sffd

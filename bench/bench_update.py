@@ -1,4 +1,4 @@
-"""Incremental frames (Deformer.deform(..., incremental=True), CpuEvaluator.update) against
+"""Incremental frames (Deformer.deform(..., incremental=True), the CPU evaluator) against
 whole frames: a 200k-triangle cube sphere in an 8x8x8 Blender lattice (cubic per axis) at
 level 2, the add-on's viewport case (positions only) and with normals (compact layout), on 2
 threads. Each round moves the middle point (its block reaches 4 of the 5 knot spans per axis),

@@ -23,7 +23,9 @@ command -v "$CXX" >/dev/null || { echo "fuzz.sh: $CXX not found (apt-get install
 FLAGS=(-std=c++17 -O2 -gline-tables-only -fsanitize=fuzzer-no-link,address,undefined
        -fno-sanitize-recover=all -Inative -I/usr/include/eigen3)
 objs=()
-for src in $(ls native/smoothffd/*/*.cpp | grep -v "^native/smoothffd/cuda/") native/fuzz/fuzz_plan.cpp; do
+# The core's sources: not those of the CUDA library (cuda/) nor _core's proxy of it (cuda_proxy/).
+for src in $(ls native/smoothffd/*/*.cpp | grep -v -e "^native/smoothffd/cuda/" -e "^native/smoothffd/cuda_proxy/") \
+           native/fuzz/fuzz_plan.cpp; do
   o="$OUT/obj/$(echo "${src%.cpp}" | tr / _).o"
   # Rebuild when the source or any core header is newer than the object.
   if [ ! -f "$o" ] || [ "$src" -nt "$o" ] || [ -n "$(find native/smoothffd -name '*.hpp' -newer "$o" | head -1)" ]; then

@@ -310,6 +310,32 @@ def test_deformer_cuda_matches_cpu():
     assert auto.device == "cuda"
 
 
+@pytest.mark.parametrize("layout", ["corners", "compact"])
+@pytest.mark.parametrize("normals", [True, False])
+def test_incremental_frames_are_whole_frames(layout, normals):
+    """The CUDA backend has no incremental path: an incremental frame (the add-on asks for
+    them on every backend) is a whole frame, bitwise the same as one asked for as such, and
+    its stats say so."""
+    rng = np.random.default_rng(13)
+    mesh, lat = icosphere(2), bspline(rng)
+    d = smoothffd.Deformer(mesh, lat, level=5, device="cuda")
+    res = d.deform(normals=normals, layout=layout)
+    pts = lat.control_points.copy()
+    pts[2, 2, 2] += 0.05
+    inc = d.deform(pts, out=res, normals=normals, layout=layout, incremental=True)
+    whole = smoothffd.Deformer(mesh, lat.with_control_points(pts), level=5, device="cuda").deform(
+        normals=normals, layout=layout)
+    assert inc.stats["device"] == "cuda"
+    assert inc.stats["recomputed_patches"] == d.plan.patches
+    assert inc.stats["changed_points"] == pts.shape[0] * pts.shape[1] * pts.shape[2]
+    np.testing.assert_array_equal(inc.positions, whole.positions)
+    name = "normals" if layout == "compact" else "corner_normals"
+    if normals:
+        np.testing.assert_array_equal(getattr(inc, name), getattr(whole, name))
+    else:
+        assert getattr(inc, name) is None
+
+
 def test_repeated_frames_both_paths():
     need_cublas()
     rng = np.random.default_rng(5)

@@ -30,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 CUDA_LIBS = re.compile(r"lib(cudart|cublas|cublasLt|cuda)\.so")
 
-# What cuda_status() may say when CUDA cannot be used (cuda_loader.cpp, cuda/device_status.cpp).
+# What cuda_status() may say when CUDA cannot be used (cuda_proxy/cuda_proxy.cpp, cuda/device_status.cpp).
 REASONS = ("not installed", "failed to load", "built from other smoothffd sources", "no NVIDIA driver",
            "driver is too old", "no CUDA device", "no kernels", "cudaGetDeviceCount failed",
            "context creation failed", "CUDA initialization failed", "did not report")
@@ -104,6 +104,19 @@ def test_cuda_status_says_why():
     d = smoothffd.Deformer(mesh, lat, level=3, device="auto")
     assert d.device == "cpu"
     assert np.isfinite(d.deform().positions).all()
+
+
+def test_evaluators_offer_the_same_frames():
+    """CpuEvaluator and CudaEvaluator offer the same frames (eval/evaluator.hpp): the same
+    methods with the same arguments, incremental frames and last_frame included, so that
+    smoothffd.Deformer never asks which backend it holds."""
+    for name in ("evaluate", "evaluate_compact", "evaluate_positions"):
+        sigs = {cls.__name__: getattr(cls, name).__doc__.splitlines()[0].replace(cls.__name__, "Evaluator")
+                for cls in (_core.CpuEvaluator, _core.CudaEvaluator)}
+        assert sigs["CpuEvaluator"] == sigs["CudaEvaluator"], sigs
+        assert "incremental: bool = False" in sigs["CpuEvaluator"], sigs
+    for cls in (_core.CpuEvaluator, _core.CudaEvaluator):
+        assert isinstance(cls.last_frame, property), cls
 
 
 def package_copy(tmp_path, library=None):

@@ -218,7 +218,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   for (float& d : D) d = (float)palette_or_range(fdp, -4, 4);
   std::vector<float> pos(3 * (size_t)plan->output_vertices), nrm(9 * (size_t)plan->output_triangles);
   CpuEvaluator ev(plan, 1);
-  StageTimes times = ev.evaluate(D.data(), pos.data(), nrm.data());
+  StageTimes times = ev.evaluate(D.data(), pos.data(), nrm.data(), Frame::whole);
   if (std::getenv("FUZZ_PLAN_VERBOSE")) {
     std::fprintf(stderr, "evaluate_ms:");
     for (auto& kv : times) std::fprintf(stderr, " %s=%.1f", kv.first.c_str(), kv.second);

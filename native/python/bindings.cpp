@@ -19,8 +19,8 @@
 #include "smoothffd/plan/plan.hpp"
 #include "smoothffd/plan/sources.hpp"
 // The CUDA backend, loaded from libsmoothffd_cuda.so when first asked for: the module needs no
-// CUDA library (cuda/cuda_loader.hpp).
-#include "smoothffd/cuda/cuda_loader.hpp"
+// CUDA library (cuda_proxy/cuda_proxy.hpp).
+#include "smoothffd/cuda_proxy/cuda_proxy.hpp"
 
 namespace py = pybind11;
 using namespace sffd;
@@ -113,9 +113,10 @@ void check_values(const Plan& plan, const Arr<float>& D) {
                                 ") array matching the plan");
 }
 
-// incremental: CpuEvaluator::update instead of the whole frame (the CPU evaluator only).
+Frame frame_of(bool incremental) { return incremental ? Frame::incremental : Frame::whole; }
+
 py::tuple run_evaluator(Evaluator& ev, const Arr<float>& D, const py::object& out_positions,
-                        const py::object& out_normals, bool incremental = false) {
+                        const py::object& out_normals, bool incremental) {
   const Plan& plan = ev.plan();
   check_values(plan, D);
   py::array_t<float> pos = output_array(out_positions, {(py::ssize_t)plan.output_vertices, 3}, "positions");
@@ -123,9 +124,7 @@ py::tuple run_evaluator(Evaluator& ev, const Arr<float>& D, const py::object& ou
   const float* d = D.data();
   float* p = pos.mutable_data();
   float* n = nrm.mutable_data();
-  StageTimes t = interruptible([&] {
-    return incremental ? dynamic_cast<CpuEvaluator&>(ev).update(d, p, n, nullptr) : ev.evaluate(d, p, n);
-  });
+  StageTimes t = interruptible([&] { return ev.evaluate(d, p, n, frame_of(incremental)); });
   return py::make_tuple(pos, nrm, times_dict(t));
 }
 
@@ -191,8 +190,7 @@ py::array_t<float> pinned_array(const std::vector<py::ssize_t>& shape) {
 // normals=False: positions only (the out normals are neither needed nor touched). pinned: new
 // arrays in page-locked memory (the CUDA evaluator).
 py::tuple run_compact(Evaluator& ev, const Arr<float>& D, const py::object& out_positions,
-                      const py::object& out_normals, bool normals, bool pinned = false,
-                      bool incremental = false) {
+                      const py::object& out_normals, bool normals, bool pinned, bool incremental) {
   const Plan& plan = ev.plan();
   check_values(plan, D);
   auto out = [&](const py::object& given, py::ssize_t rows, const char* name) {
@@ -209,32 +207,69 @@ py::tuple run_compact(Evaluator& ev, const Arr<float>& D, const py::object& out_
   }
   const float* d = D.data();
   float* p = pos.mutable_data();
-  StageTimes t = interruptible([&] {
-    return incremental ? dynamic_cast<CpuEvaluator&>(ev).update(d, p, nullptr, n) : ev.evaluate_compact(d, p, n);
-  });
+  StageTimes t = interruptible([&] { return ev.evaluate_compact(d, p, n, frame_of(incremental)); });
   return py::make_tuple(pos, nrm_obj, times_dict(t));
 }
 
-// Positions only: (positions, stage times). `eval(D, positions)` runs the backend's
-// positions-only frame; validation and out-buffer reuse as run_evaluator's.
-template <class Ev, class Fn>
-py::tuple run_positions(Ev& ev, const Arr<float>& D, const py::object& out_positions, Fn eval) {
+// Positions only: (positions, stage times); validation and out-buffer reuse as run_evaluator's.
+py::tuple run_positions(Evaluator& ev, const Arr<float>& D, const py::object& out_positions, bool incremental) {
   const Plan& plan = ev.plan();
   check_values(plan, D);
   py::array_t<float> pos = output_array(out_positions, {(py::ssize_t)plan.output_vertices, 3}, "positions");
   const float* d = D.data();
   float* p = pos.mutable_data();
-  StageTimes t = interruptible([&] { return eval(d, p); });
+  StageTimes t = interruptible([&] { return ev.evaluate_positions(d, p, frame_of(incremental)); });
   return py::make_tuple(pos, times_dict(t));
 }
 
-}  // namespace
-
 const char* const kIncrementalDoc =
     "incremental=True: recompute only what reads a control point whose values differ from the "
-    "previous frame's (CpuEvaluator::update); the output arrays passed must be the previous "
-    "frame's, of the same kind, untouched since: the rest of them is kept. Otherwise (another "
-    "kind or other arrays before, or none) a whole frame. Bitwise the whole frame's output.";
+    "previous frame's; the output arrays passed must be the previous frame's, of the same kind, "
+    "untouched since: the rest of them is kept. Otherwise (another kind or other arrays before, "
+    "or none) a whole frame. Bitwise the whole frame's output. A backend without incremental "
+    "frames (CUDA) runs a whole frame; last_frame says what ran.";
+
+// The frames of eval/evaluator.hpp, the same methods on every evaluator class. pinned: new
+// arrays of the compact layout in page-locked memory (the CUDA evaluator).
+template <class Ev>
+void def_frames(py::class_<Ev, std::shared_ptr<Ev>>& cls, bool pinned, const char* positions_doc) {
+  cls.def("evaluate",
+          [](Ev& ev, Arr<float> D, py::object positions, py::object corner_normals, bool incremental) {
+            return run_evaluator(ev, D, positions, corner_normals, incremental);
+          },
+          py::arg("values"), py::arg("positions") = py::none(), py::arg("corner_normals") = py::none(),
+          py::kw_only(), py::arg("incremental") = false, kIncrementalDoc)
+      .def("evaluate_compact",
+           [pinned](Ev& ev, Arr<float> D, py::object positions, py::object normals, bool with_normals,
+                    bool incremental) {
+             return run_compact(ev, D, positions, normals, with_normals, pinned, incremental);
+           },
+           py::arg("values"), py::arg("positions") = py::none(), py::arg("normals") = py::none(),
+           py::arg("with_normals") = true, py::kw_only(), py::arg("incremental") = false,
+           pinned ? "(positions (N, 3), render-vertex normals (R, 3) or None, stage times): the compact "
+                    "layout (Plan.render_vertices() for its topology); new arrays are page-locked (pooled). "
+                    "incremental: as evaluate's"
+                  : "(positions (N, 3), render-vertex normals (R, 3) or None, stage times): the compact "
+                    "layout (Plan.render_vertices() for its topology). incremental: as evaluate's")
+      .def("evaluate_positions",
+           [](Ev& ev, Arr<float> D, py::object positions, bool incremental) {
+             return run_positions(ev, D, positions, incremental);
+           },
+           py::arg("values"), py::arg("positions") = py::none(), py::kw_only(), py::arg("incremental") = false,
+           positions_doc)
+      .def_property_readonly(
+          "last_frame",
+          [](const Ev& ev) {
+            const FrameCounts c = ev.last_frame();
+            py::dict d;
+            d["changed_points"] = c.changed_points;
+            d["patches"] = c.patches;
+            return d;
+          },
+          "what the last frame recomputed: {'changed_points', 'patches'} (all of either: a whole frame)");
+}
+
+}  // namespace
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "smoothffd native core: lattice bases, plan building, CPU and CUDA evaluators";
@@ -434,52 +469,21 @@ PYBIND11_MODULE(_core, m) {
         "the CPU evaluator's default per-frame code path on this CPU: on x86-64 'x86-64-v3' "
         "(AVX2 + FMA, chosen by CPUID) or the baseline 'x86-64-v2'; on 64-bit Arm 'armv8-a' "
         "(NEON, the only path); CpuEvaluator(..., isa=...) picks one");
-  py::class_<CpuEvaluator, std::shared_ptr<CpuEvaluator>>(m, "CpuEvaluator")
-      .def(py::init([](std::shared_ptr<Plan> plan, int threads, const std::string& isa) {
-             return interruptible([&] { return std::make_shared<CpuEvaluator>(plan, threads, isa); });
-           }),
-           // .none(false): None was a null plan and a segfault (found by fuzz_bindings.py)
-           py::arg("plan").none(false), py::arg("threads") = 0, py::kw_only(), py::arg("isa") = "auto",
-           py::keep_alive<1, 2>())
+  py::class_<CpuEvaluator, std::shared_ptr<CpuEvaluator>> cpu(m, "CpuEvaluator");
+  cpu.def(py::init([](std::shared_ptr<Plan> plan, int threads, const std::string& isa) {
+            return interruptible([&] { return std::make_shared<CpuEvaluator>(plan, threads, isa); });
+          }),
+          // .none(false): None was a null plan and a segfault (found by fuzz_bindings.py)
+          py::arg("plan").none(false), py::arg("threads") = 0, py::kw_only(), py::arg("isa") = "auto",
+          py::keep_alive<1, 2>())
       .def_property_readonly("threads", &CpuEvaluator::threads)
       .def_property_readonly("isa", &CpuEvaluator::isa,
                              "per-frame code path: 'x86-64-v2' (baseline) or 'x86-64-v3' (AVX2 + FMA)")
-      .def("evaluate",
-           [](CpuEvaluator& ev, Arr<float> D, py::object positions, py::object corner_normals, bool incremental) {
-             return run_evaluator(ev, D, positions, corner_normals, incremental);
-           },
-           py::arg("values"), py::arg("positions") = py::none(), py::arg("corner_normals") = py::none(),
-           py::kw_only(), py::arg("incremental") = false, kIncrementalDoc)
-      .def("evaluate_compact",
-           [](CpuEvaluator& ev, Arr<float> D, py::object positions, py::object normals, bool with_normals,
-              bool incremental) {
-             return run_compact(ev, D, positions, normals, with_normals, false, incremental);
-           },
-           py::arg("values"), py::arg("positions") = py::none(), py::arg("normals") = py::none(),
-           py::arg("with_normals") = true, py::kw_only(), py::arg("incremental") = false,
-           "(positions (N, 3), render-vertex normals (R, 3) or None, stage times): the compact "
-           "layout (Plan.render_vertices() for its topology). incremental: as evaluate's")
-      .def("evaluate_positions",
-           [](CpuEvaluator& ev, Arr<float> D, py::object positions, bool incremental) {
-             return run_positions(ev, D, positions, [&](const float* d, float* p) {
-               return incremental ? ev.update(d, p, nullptr, nullptr) : ev.evaluate_positions(d, p);
-             });
-           },
-           py::arg("values"), py::arg("positions") = py::none(), py::kw_only(), py::arg("incremental") = false,
-           "(positions (N, 3), stage times): evaluate's positions, bitwise, without the normals "
-           "(Jacobians only at the sub-vertices, no normal patches). incremental: as evaluate's")
-      .def_property_readonly(
-          "last_frame",
-          [](const CpuEvaluator& ev) {
-            const CpuEvaluator::FrameCounts c = ev.last_frame();
-            py::dict d;
-            d["changed_points"] = c.changed_points;
-            d["patches"] = c.patches;
-            return d;
-          },
-          "what the last frame recomputed: {'changed_points', 'patches'} (all of either: a whole frame)")
       .def_property_readonly("update_bytes", &CpuEvaluator::update_bytes,
                              "host memory of the incremental frames' tables (0 before the first)");
+  def_frames(cpu, /*pinned=*/false,
+             "(positions (N, 3), stage times): evaluate's positions, bitwise, without the normals "
+             "(Jacobians only at the sub-vertices, no normal patches). incremental: as evaluate's");
 
   // Whether the CUDA backend (libsmoothffd_cuda.so) is next to the module: loads nothing.
   m.attr("cuda_compiled") = cuda_library_present();
@@ -489,8 +493,8 @@ PYBIND11_MODULE(_core, m) {
         "(backend not installed or failed to load, no NVIDIA driver, driver too old, no device, no "
         "kernels for the device's architecture); loads the CUDA backend on first call");
   // CUDA errors arrive as CudaError (RuntimeError) or CudaOutOfMemory (MemoryError).
-  py::class_<CudaEvaluator, std::shared_ptr<CudaEvaluator>>(m, "CudaEvaluator")
-      .def(py::init([](std::shared_ptr<Plan> plan, const std::string& path, int64_t shared_memory_limit) {
+  py::class_<CudaEvaluator, std::shared_ptr<CudaEvaluator>> cuda(m, "CudaEvaluator");
+  cuda.def(py::init([](std::shared_ptr<Plan> plan, const std::string& path, int64_t shared_memory_limit) {
              return std::make_shared<CudaEvaluator>(plan, path, shared_memory_limit);
            }),
            py::arg("plan").none(false), py::arg("path") = "", py::arg("shared_memory_limit") = 0, py::keep_alive<1, 2>(),
@@ -523,28 +527,6 @@ PYBIND11_MODULE(_core, m) {
           },
           "the shared-memory limits the launches are planned with (the device's or the emulated "
           "device's) and what they leave the inline kernel")
-      .def("evaluate",
-           [](CudaEvaluator& ev, Arr<float> D, py::object positions, py::object corner_normals) {
-             return run_evaluator(ev, D, positions, corner_normals);
-           },
-           py::arg("values"), py::arg("positions") = py::none(), py::arg("corner_normals") = py::none())
-      .def("evaluate_compact",
-           [](CudaEvaluator& ev, Arr<float> D, py::object positions, py::object normals, bool with_normals) {
-             return run_compact(ev, D, positions, normals, with_normals, /*pinned=*/true);
-           },
-           py::arg("values"), py::arg("positions") = py::none(), py::arg("normals") = py::none(),
-           py::arg("with_normals") = true,
-           "(positions (N, 3), render-vertex normals (R, 3) or None, stage times): the compact "
-           "layout (Plan.render_vertices() for its topology); new arrays are page-locked (pooled)")
-      .def("evaluate_positions",
-           [](CudaEvaluator& ev, Arr<float> D, py::object positions) {
-             return run_positions(ev, D, positions, [&](const float* d, float* p) {
-               return ev.evaluate(d, p, nullptr);
-             });
-           },
-           py::arg("values"), py::arg("positions") = py::none(),
-           "(positions (N, 3), stage times): the whole frame on the device, positions copied "
-           "back, the normals' copy back and gather skipped")
       .def("evaluate_device",
            [](CudaEvaluator& ev, Arr<float> D) {
              const Plan& plan = ev.plan();
@@ -557,6 +539,9 @@ PYBIND11_MODULE(_core, m) {
              return times_dict(t);
            },
            py::arg("values"), "runs the frame on the device only; returns stage times (ms, CUDA events)");
+  def_frames(cuda, /*pinned=*/true,
+             "(positions (N, 3), stage times): the whole frame on the device, positions copied "
+             "back, the normals' copy back and gather skipped");
 
   // Test hooks, not for users: smoothffd._core._testing (the GPU tests use it, also against the
   // installed wheel; it costs nothing until called).

@@ -182,15 +182,15 @@ TEST(Cancel, CpuFrameStopsAndTheEvaluatorStaysUsable) {
   for (int stop_at : {1, 3}) {
     CountingCheck check{stop_at};
     CancelScope scope(std::ref(check), std::chrono::milliseconds(0));
-    EXPECT_THROW(ev.evaluate(D.data(), pos.data(), nrm.data()), Cancelled);
+    EXPECT_THROW(ev.evaluate(D.data(), pos.data(), nrm.data(), Frame::whole), Cancelled);
   }
-  ev.evaluate(D.data(), pos.data(), nrm.data());
+  ev.evaluate(D.data(), pos.data(), nrm.data(), Frame::whole);
   EXPECT_EQ(pos, want.pos);
   EXPECT_EQ(nrm, want.nrm);
   {
     CancelScope scope([] { return false; }, std::chrono::milliseconds(0));  // sliced, same bits
     std::fill(pos.begin(), pos.end(), -1.0f);
-    ev.evaluate(D.data(), pos.data(), nrm.data());
+    ev.evaluate(D.data(), pos.data(), nrm.data(), Frame::whole);
   }
   EXPECT_EQ(pos, want.pos);
   EXPECT_EQ(nrm, want.nrm);

@@ -166,10 +166,10 @@ TEST(CpuEvaluator, PositionsOnlyMatchesEvaluateBitwise) {
     CpuOut full = run_cpu(plan, D);
     std::vector<float> fresh(full.pos.size()), reused(full.pos.size());
     CpuEvaluator a(plan), b(plan);
-    a.evaluate_positions(D.data(), fresh.data());
+    a.evaluate_positions(D.data(), fresh.data(), Frame::whole);
     CpuOut scratch{std::vector<float>(full.pos.size()), std::vector<float>(full.nrm.size())};
-    b.evaluate(other.data(), scratch.pos.data(), scratch.nrm.data());
-    StageTimes t = b.evaluate_positions(D.data(), reused.data());
+    b.evaluate(other.data(), scratch.pos.data(), scratch.nrm.data(), Frame::whole);
+    StageTimes t = b.evaluate_positions(D.data(), reused.data(), Frame::whole);
     ASSERT_EQ(0, std::memcmp(full.pos.data(), fresh.data(), 4 * full.pos.size())) << "case " << cases;
     ASSERT_EQ(0, std::memcmp(full.pos.data(), reused.data(), 4 * full.pos.size())) << "case " << cases;
     ASSERT_EQ(t.size(), 4u);
@@ -253,7 +253,7 @@ TEST(CpuEvaluator, CentreRowsOnlyWhereTheCentreIsLinear) {
 }
 
 TEST(CpuEvaluator, UpdateMatchesWholeFramesBitwise) {
-  // update (incremental frames, eval/cpu_update.hpp) against a fresh evaluator's whole frame
+  // Incremental frames (eval/cpu_update.hpp) against a fresh evaluator's whole frame
   // for the same control values, bit for bit, in each kind (corner normals, compact, positions
   // only), over a run of frames that move one point, a few, none, or all of them. An element
   // whose block missed a control point it reads keeps a stale value and changes bits.
@@ -271,13 +271,10 @@ TEST(CpuEvaluator, UpdateMatchesWholeFramesBitwise) {
       CpuEvaluator inc(plan);
       const size_t nn = kind == 0 ? 9 * (size_t)plan->output_triangles : kind == 1 ? 3 * (size_t)plan->render_vertices : 0;
       std::vector<float> pos(N), nrm(nn), want_pos(N), want_nrm(nn);
-      auto frame = [&](CpuEvaluator& ev, bool update, float* p, float* n) {
-        float* corner = kind == 0 ? n : nullptr;
-        float* render = kind == 1 ? n : nullptr;
-        if (update) return ev.update(D.data(), p, corner, render);
-        if (kind == 0) return ev.evaluate(D.data(), p, corner);
-        if (kind == 1) return ev.evaluate_compact(D.data(), p, render);
-        return ev.evaluate_positions(D.data(), p);
+      auto frame = [&](CpuEvaluator& ev, Frame f, float* p, float* n) {
+        if (kind == 0) return ev.evaluate(D.data(), p, n, f);
+        if (kind == 1) return ev.evaluate_compact(D.data(), p, n, f);
+        return ev.evaluate_positions(D.data(), p, f);
       };
       for (int step = 0; step < 8; ++step) {
         // step 0: the first frame (whole); 1-4: one random point; 5: three; 6: none; 7: all
@@ -288,14 +285,14 @@ TEST(CpuEvaluator, UpdateMatchesWholeFramesBitwise) {
           D[C * q + rng() % 3] += U(rng);
           if (C == 4 && step == 5) D[C * q + 3] = 0.5f + 0.5f * (U(rng) + 0.3f);  // a weight too
         }
-        frame(inc, true, pos.data(), nrm.data());
+        frame(inc, Frame::incremental, pos.data(), nrm.data());
         CpuEvaluator whole(plan);
-        frame(whole, false, want_pos.data(), want_nrm.data());
+        frame(whole, Frame::whole, want_pos.data(), want_nrm.data());
         ASSERT_EQ(0, std::memcmp(pos.data(), want_pos.data(), 4 * N)) << "case " << cases << " kind " << kind << " step " << step;
         // (positions only: no normals, and memcmp may not be handed the empty vectors' nullptr)
         ASSERT_TRUE(nn == 0 || std::memcmp(nrm.data(), want_nrm.data(), 4 * nn) == 0)
             << "case " << cases << " kind " << kind << " step " << step;
-        const CpuEvaluator::FrameCounts c = inc.last_frame();
+        const FrameCounts c = inc.last_frame();
         if (step == 0 || step == 7) EXPECT_EQ(c.patches, plan->patches);
         if (step == 6) {
           EXPECT_EQ(c.changed_points, 0);
@@ -316,29 +313,35 @@ TEST(CpuEvaluator, UpdateMatchesWholeFramesBitwise) {
   EXPECT_GT(partial, 50);  // most single-point frames recompute part of the mesh only
 }
 
-TEST(CpuEvaluator, UpdateRunsAWholeFrameWhereItCannotContinue) {
-  // Another kind, other arrays, or no frame before: a whole frame, right output.
+TEST(CpuEvaluator, IncrementalFrameIsWholeWhereItCannotContinue) {
+  // Another kind, other arrays, a whole frame, or no frame before: a whole frame, right output.
+  // Through the evaluator interface, as the bindings call it.
   auto plan = plan_of(cube_quads(), blender_box(BlenderInterp::BSpline, 6), 2);
   std::vector<float> D(3 * 216, 0.0f);
   std::vector<float> pos(3 * (size_t)plan->output_vertices), other(pos.size()), nrm(3 * (size_t)plan->render_vertices);
-  CpuEvaluator ev(plan);
-  ev.update(D.data(), pos.data(), nullptr, nullptr);
+  CpuEvaluator cpu(plan);
+  Evaluator& ev = cpu;
+  EXPECT_EQ(ev.last_frame().patches, 0);  // no frame yet
+  ev.evaluate_positions(D.data(), pos.data(), Frame::incremental);
   EXPECT_EQ(ev.last_frame().patches, plan->patches);  // none before
   D[0] = 0.1f;
-  ev.update(D.data(), pos.data(), nullptr, nullptr);
+  ev.evaluate_positions(D.data(), pos.data(), Frame::incremental);
   EXPECT_LT(ev.last_frame().patches, plan->patches);
   EXPECT_EQ(ev.last_frame().changed_points, 1);
   D[1] = 0.1f;
-  ev.update(D.data(), other.data(), nullptr, nullptr);  // other arrays
+  ev.evaluate_positions(D.data(), other.data(), Frame::incremental);  // other arrays
   EXPECT_EQ(ev.last_frame().patches, plan->patches);
-  ev.update(D.data(), other.data(), nullptr, nrm.data());  // another kind
+  ev.evaluate_compact(D.data(), other.data(), nrm.data(), Frame::incremental);  // another kind
   EXPECT_EQ(ev.last_frame().patches, plan->patches);
-  std::vector<float> corner(9 * (size_t)plan->output_triangles);
-  EXPECT_THROW(ev.update(D.data(), pos.data(), corner.data(), nrm.data()), std::invalid_argument);
   D[2] = 0.1f;
-  ev.update(D.data(), other.data(), nullptr, nrm.data());  // the failed call changed nothing
+  ev.evaluate_compact(D.data(), other.data(), nrm.data(), Frame::whole);  // asked for a whole frame
+  EXPECT_EQ(ev.last_frame().patches, plan->patches);
+  EXPECT_EQ(ev.last_frame().changed_points, 216);
+  D[2] = 0.2f;
+  ev.evaluate_compact(D.data(), other.data(), nrm.data(), Frame::incremental);  // continues the whole frame
   EXPECT_LT(ev.last_frame().patches, plan->patches);
+  EXPECT_EQ(ev.last_frame().changed_points, 1);
   CpuOut want = run_cpu(plan, D);
   EXPECT_EQ(0, std::memcmp(want.pos.data(), other.data(), 4 * other.size()));
-  EXPECT_GT(ev.update_bytes(), 0u);
+  EXPECT_GT(cpu.update_bytes(), 0u);
 }

@@ -118,7 +118,7 @@ TEST(CpuIsa, EachPathsPositionsOnlyMatchItsEvaluateBitwise) {
       CpuOut full = run_cpu(plan, D, 0, isa);
       CpuEvaluator ev(plan, 0, isa);
       std::vector<float> pos(full.pos.size());
-      ev.evaluate_positions(D.data(), pos.data());
+      ev.evaluate_positions(D.data(), pos.data(), Frame::whole);
       EXPECT_EQ(0, std::memcmp(full.pos.data(), pos.data(), 4 * pos.size())) << isa << ", " << c.name;
     }
   }

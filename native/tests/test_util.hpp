@@ -34,7 +34,7 @@ inline CpuOut run_cpu(const std::shared_ptr<const sffd::Plan>& plan, const std::
   CpuOut o;
   o.pos.resize(3 * (size_t)plan->output_vertices);
   o.nrm.resize(9 * (size_t)plan->output_triangles);
-  ev.evaluate(D.data(), o.pos.data(), o.nrm.data());
+  ev.evaluate(D.data(), o.pos.data(), o.nrm.data(), sffd::Frame::whole);
   return o;
 }
 

@@ -255,8 +255,8 @@ class Deformer:
         moved since that call: dragging one point of a large lattice costs the part of the mesh
         it reaches (docs/benchmarks.md). The rest of `out` is kept as it is; the output is
         bitwise a whole frame's. Anything else (no `out`, another result, other normals or
-        layout, a new plan, the CUDA backend) runs a whole frame. `stats["recomputed_patches"]`
-        says what ran (CPU).
+        layout, a new plan) runs a whole frame, as does every frame of the CUDA backend (it
+        has no incremental path). `stats["recomputed_patches"]` says what ran.
         """
         if layout not in _LAYOUTS:
             raise ValueError(f"layout: expected one of {_LAYOUTS}, got {layout!r}")
@@ -320,10 +320,9 @@ class Deformer:
                      output_triangles=p.output_triangles, fit_degree=p.fit_degree,
                      level=self.level)
         stats["layout"] = layout
-        if self.device == "cpu":
-            frame = self._evaluator.last_frame
-            stats["changed_points"] = frame["changed_points"]
-            stats["recomputed_patches"] = frame["patches"]
+        frame = self._evaluator.last_frame
+        stats["changed_points"] = frame["changed_points"]
+        stats["recomputed_patches"] = frame["patches"]
         if compact:
             return CompactResult(positions=positions, normals=nrm, render_vertex=s["render_vertex"],
                                  render_triangles=s["render_triangles"], triangles=s["triangles"],
@@ -337,9 +336,7 @@ class Deformer:
 
     def _evaluate(self, values, bufs, normals, compact=False, incremental=False):
         """(positions, normals or None, stage times) from the evaluator."""
-        kw = dict(bufs)
-        if incremental and self.device == "cpu":
-            kw["incremental"] = True
+        kw = dict(bufs, incremental=incremental)
         if compact:
             return self._evaluator.evaluate_compact(values, with_normals=normals, **kw)
         if normals:

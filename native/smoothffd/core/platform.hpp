@@ -2,7 +2,7 @@
 // shared libraries at run time (the CUDA backend, cuBLAS, the NVIDIA driver), finding the file
 // a function lives in, library file names, and asking the CPU which instruction sets it runs.
 // Three systems: Linux and macOS (dlopen) and Windows (LoadLibrary); the callers are the same
-// on all of them. Host code only: _core (cuda/cuda_loader.cpp, eval/cpu_evaluator.cpp) and
+// on all of them. Host code only: _core (cuda_proxy/cuda_proxy.cpp, eval/cpu_evaluator.cpp) and
 // the host side of the CUDA library (cuda/device_status.cpp, cuda/cublas_gemm.cpp).
 #pragma once
 

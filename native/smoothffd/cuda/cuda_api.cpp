@@ -1,6 +1,7 @@
 // The C boundary of libsmoothffd_cuda.so (cuda_api.h): sffd_cuda_api_v1, the library's only
-// exported symbol (cuda_api.map), returns the table of C functions that wrap the C++ evaluator
-// of cuda_evaluator.hpp. Every exception stops here and becomes an error code and message.
+// exported symbol (cuda_api.map), returns the table of C functions over the library's C++
+// implementation (cuda_evaluator.hpp). Every exception stops here and becomes an error code
+// and message; every C++ type becomes its C counterpart of cuda_api.h.
 #include "smoothffd/cuda/cuda_api.h"
 
 #include <cuda_runtime.h>
@@ -80,7 +81,7 @@ uint64_t plan_tail() {
   return (uint64_t)(reinterpret_cast<const char*>(&p.build_ms) - reinterpret_cast<const char*>(&p));
 }
 
-int api_status(char* message, size_t size) {
+int cuda_status(char* message, size_t size) {
   try {
     auto st = sffd::cuda_impl::cuda_status();
     copy_text(message, size, st.second.c_str());
@@ -134,16 +135,28 @@ uint64_t output_bytes(const sffd_cuda_evaluator* ev) { return ev->ev->output_byt
 uint64_t device_bytes(const sffd_cuda_evaluator* ev) { return ev->ev->device_bytes(); }
 
 void limits(const sffd_cuda_evaluator* ev, sffd_cuda_limits* out) {
-  if (out) *out = ev->ev->limits();
+  if (!out) return;
+  const sffd::cuda_impl::DeviceLimits l = ev->ev->limits();
+  *out = sffd_cuda_limits{};
+  out->per_block = l.per_block;
+  out->per_multiprocessor = l.per_multiprocessor;
+  out->reserved_per_block = l.reserved_per_block;
+  out->inline_static = l.inline_static;
+  out->inline_dynamic_max = l.inline_dynamic_max;
+  out->inline_dynamic = l.inline_dynamic;
+  out->inline_blocks_per_multiprocessor = l.inline_blocks_per_multiprocessor;
+  out->multiprocessors = l.multiprocessors;
+  out->registers_per_multiprocessor = l.registers_per_multiprocessor;
+  out->compute_capability = l.compute_capability;
 }
 
 int testing_poison(sffd_cuda_evaluator* ev, sffd_cuda_error* err) {
-  return guarded(err, [&] { ev->ev->poison(); });
+  return guarded(err, [&] { ev->ev->testing_poison(); });
 }
 
-int evaluate_compact(sffd_cuda_evaluator* ev, const float* D, float* positions, float* normals, sffd_cuda_times* times,
-                     sffd_cuda_error* err) {
-  return guarded(err, [&] { put_times(ev->ev->evaluate_compact(D, positions, normals), times); });
+int evaluate_compact(sffd_cuda_evaluator* ev, const float* D, float* positions, float* render_normals,
+                     sffd_cuda_times* times, sffd_cuda_error* err) {
+  return guarded(err, [&] { put_times(ev->ev->evaluate_compact(D, positions, render_normals), times); });
 }
 
 int host_alloc(uint64_t bytes, void** out, sffd_cuda_error* err) {
@@ -178,7 +191,7 @@ sffd_cuda_api make_api() noexcept {
     a.plan_tail = 0;
     a.build_info = "";
   }
-  a.status = api_status;
+  a.cuda_status = cuda_status;
   a.evaluator_create = evaluator_create;
   a.evaluator_destroy = evaluator_destroy;
   a.evaluate = evaluate;

@@ -1,8 +1,11 @@
 /* The C boundary between the Python module (_core, no CUDA library needed) and the CUDA
  * backend, libsmoothffd_cuda.so (CUDA runtime linked statically, libstdc++ too, Python-free:
- * one build serves every CPython wheel). _core dlopens the library next to its own file when
- * the CUDA backend is first asked for (cuda_loader.cpp) and calls sffd_cuda_api_v1(), the
- * library's only exported symbol, for this table of C function pointers.
+ * one build serves every CPython wheel). The surface of the CUDA backend is declared here and
+ * nowhere else: the library fills this table of C function pointers (cuda_api.cpp, over its
+ * implementation in cuda_evaluator.hpp), and _core's one C++ proxy, sffd::CudaEvaluator
+ * (cuda_proxy/cuda_proxy.hpp), calls it. _core dlopens the library next to its own file when
+ * the CUDA backend is first asked for and calls sffd_cuda_api_v1(), the library's only
+ * exported symbol, for the table.
  *
  * Rules of the boundary:
  *  - nothing is thrown across it: every call that can fail returns an sffd_cuda_code and fills
@@ -24,10 +27,10 @@
 extern "C" {
 #endif
 
-#define SFFD_CUDA_ABI_VERSION 5
+#define SFFD_CUDA_ABI_VERSION 6
 #define SFFD_CUDA_ENTRY "sffd_cuda_api_v1"
 
-/* What a failed call raises on the C++ side (cuda_loader.cpp). */
+/* What a failed call raises on the C++ side (cuda_proxy.cpp). */
 enum sffd_cuda_code {
   SFFD_CUDA_OK = 0,
   SFFD_CUDA_ERROR = 1,            /* sffd::CudaError (RuntimeError): CUDA / cuBLAS / driver error */
@@ -75,7 +78,7 @@ typedef struct sffd_cuda_api {
 
   /* 1 when a CUDA device can run the evaluator, else 0; message: which device, or precisely why
    * not (no driver, driver too old, no device, no kernel image for its architecture, ...). */
-  int (*status)(char* message, size_t message_size);
+  int (*cuda_status)(char* message, size_t message_size);
 
   /* plan: const sffd::Plan*. path: "fused", "cublas" or "" (fused).
    * shared_memory_limit: 0 (the device's own limits) or the bytes of shared memory a block
@@ -96,7 +99,7 @@ typedef struct sffd_cuda_api {
   uint64_t (*device_bytes)(const sffd_cuda_evaluator* ev);
   void (*limits)(const sffd_cuda_evaluator* ev, sffd_cuda_limits* out);
   /* The compact layout: positions N x 3, render-vertex normals R x 3 (null: positions only). */
-  int (*evaluate_compact)(sffd_cuda_evaluator* ev, const float* D, float* positions, float* normals,
+  int (*evaluate_compact)(sffd_cuda_evaluator* ev, const float* D, float* positions, float* render_normals,
                           sffd_cuda_times* times, sffd_cuda_error* err);
   /* Page-locked host memory (cudaHostAlloc / cudaFreeHost) for output arrays: the device copies
    * into it at the bus's full speed. host_free takes what host_alloc returned. */

@@ -1,6 +1,7 @@
 // The CUDA backend's exceptions: CudaError (RuntimeError in Python) and CudaOutOfMemory
 // (MemoryError). Thrown inside libsmoothffd_cuda.so (caught at its C boundary, cuda_api.cpp)
-// and again by _core's wrapper (cuda_loader.cpp) from the boundary's error codes.
+// and again by _core's proxy (cuda_proxy/cuda_proxy.cpp) from the boundary's error codes:
+// with cuda_api.h, the one header of this library that _core includes.
 #pragma once
 
 #include <new>

@@ -69,7 +69,7 @@ struct CudaEvaluator::Impl {
   // Shared-memory limits the launches are planned with (plan_limits): the device's own, or
   // those of the smaller device emulated (shared_memory_limit > 0).
   int64_t shared_memory_limit = 0;
-  sffd_cuda_limits lim{};
+  DeviceLimits lim{};
   size_t inline_dyn_max = 0;     // largest dynamic table of the inline kernel on this device
   size_t inline_dyn_device = 0;  // the same on the real device (the kernel's opt-in attribute)
 
@@ -92,7 +92,7 @@ struct CudaEvaluator::Impl {
     CK(cudaDeviceGetAttribute(&regs, cudaDevAttrMaxRegistersPerMultiprocessor, dev));
     CK(cudaDeviceGetAttribute(&major, cudaDevAttrComputeCapabilityMajor, dev));
     CK(cudaDeviceGetAttribute(&minor, cudaDevAttrComputeCapabilityMinor, dev));
-    lim = sffd_cuda_limits{};
+    lim = DeviceLimits{};
     lim.per_block = optin;
     lim.per_multiprocessor = per_sm;
     if (shared_memory_limit > 0) {
@@ -368,14 +368,14 @@ size_t CudaEvaluator::output_bytes() const {
 
 size_t CudaEvaluator::device_bytes() const { return impl_->arena.bytes; }
 
-sffd_cuda_limits CudaEvaluator::limits() const {
+DeviceLimits CudaEvaluator::limits() const {
   const Impl& m = *impl_;
-  sffd_cuda_limits l = m.lim;
+  DeviceLimits l = m.lim;
   l.inline_dynamic = m.inline_path() ? (int64_t)m.inline_smem : 0;
   return l;
 }
 
-void CudaEvaluator::poison() {
+void CudaEvaluator::testing_poison() {
   Impl& m = *impl_;
   const Plan& p = *plan_;
   const long long S = p.samples, E = p.edges, P = p.patches;
@@ -456,14 +456,14 @@ StageTimes CudaEvaluator::evaluate(const float* D, float* positions, float* corn
   return t;
 }
 
-StageTimes CudaEvaluator::evaluate_compact(const float* D, float* positions, float* normals) {
+StageTimes CudaEvaluator::evaluate_compact(const float* D, float* positions, float* render_normals) {
   Impl& m = *impl_;
   const Plan& p = *plan_;
   m.stage_D(D);
   const std::vector<const char*> names = m.run_recorded();
   const size_t e = names.size();  // event e marks the end of the device stages
   const float ms = copy_to_host({{positions, m.fv.positions, 12 * (size_t)p.output_vertices},
-                                 {normals, m.normals, normals ? 12 * (size_t)p.render_vertices : 0}},
+                                 {render_normals, m.normals, render_normals ? 12 * (size_t)p.render_vertices : 0}},
                                 m.stream, m.events, e, m.h_out);
   CK(cudaGetLastError());
   StageTimes t = m.times_from(names);

@@ -34,10 +34,11 @@
 // Errors (no device, launch failures, out of memory) throw CudaError (std::runtime_error) or
 // CudaOutOfMemory (std::bad_alloc): never an abort.
 //
-// This is the implementation inside libsmoothffd_cuda.so (namespace sffd::cuda_impl), behind
-// the C boundary of cuda_api.h (cuda_api.cpp); the Python module uses the wrapper of the same
-// interface in cuda_loader.hpp, which loads the library when first asked for. bench/native
-// links the same objects for its timing harness (the hooks at the end of the class).
+// This is the implementation inside libsmoothffd_cuda.so (namespace sffd::cuda_impl), not an
+// Evaluator: the library's C boundary (cuda_api.h, its table built in cuda_api.cpp) is the
+// one surface others see, and _core's CudaEvaluator (cuda_proxy/cuda_proxy.hpp) the one
+// Evaluator over it. The methods here carry that table's names. bench/native links the same
+// objects for its timing harness (the hooks at the end of the class).
 #pragma once
 
 #include <cstdint>
@@ -46,7 +47,6 @@
 #include <string>
 #include <utility>
 
-#include "smoothffd/cuda/cuda_api.h"
 #include "smoothffd/cuda/cuda_error.hpp"
 #include "smoothffd/eval/evaluator.hpp"
 
@@ -60,7 +60,23 @@ std::pair<bool, std::string> cuda_status();
 // The CUDA runtime version and the architectures this library was built for.
 const char* build_info();
 
-class CudaEvaluator : public Evaluator {
+// The shared-memory limits an evaluator plans its launches with (the device's own, or the
+// emulated smaller device's), and what they gave the inline kernel (cuda_api.h's
+// sffd_cuda_limits says each field).
+struct DeviceLimits {
+  int64_t per_block = 0;
+  int64_t per_multiprocessor = 0;
+  int64_t reserved_per_block = 0;
+  int64_t inline_static = 0;
+  int64_t inline_dynamic_max = 0;
+  int64_t inline_dynamic = 0;
+  int32_t inline_blocks_per_multiprocessor = 0;
+  int32_t multiprocessors = 0;
+  int32_t registers_per_multiprocessor = 0;
+  int32_t compute_capability = 0;
+};
+
+class CudaEvaluator {
  public:
   // path: "fused" (or "", the default) or "cublas". shared_memory_limit: 0, the device's own
   // shared-memory limits; else the opt-in shared memory a block may use on a smaller device to
@@ -68,21 +84,20 @@ class CudaEvaluator : public Evaluator {
   // blocks an SM are chosen for it.
   explicit CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string& path = "",
                          int64_t shared_memory_limit = 0);
-  ~CudaEvaluator() override;
+  ~CudaEvaluator();
   CudaEvaluator(const CudaEvaluator&) = delete;
   CudaEvaluator& operator=(const CudaEvaluator&) = delete;
-  std::string name() const override { return "cuda"; }
-  const Plan& plan() const override { return *plan_; }
+  const Plan& plan() const { return *plan_; }
 
   // Whole frame: D up, device stages, compact copy back through pinned memory, per-corner
   // normals gathered on the host (threads) into corner_normals. corner_normals null:
   // positions only (the device computes everything as usual; only the normals' copy back
   // and host gather are skipped).
-  StageTimes evaluate(const float* D, float* positions, float* corner_normals) override;
+  StageTimes evaluate(const float* D, float* positions, float* corner_normals);
   // Whole frame into the compact layout (evaluator.hpp): only the device's own output
   // crosses the bus, straight into page-locked destinations, else overlapped with the host's
-  // copy through pinned staging. normals null: positions only.
-  StageTimes evaluate_compact(const float* D, float* positions, float* normals) override;
+  // copy through pinned staging. render_normals null: positions only.
+  StageTimes evaluate_compact(const float* D, float* positions, float* render_normals);
   // Device stages only; the result stays on the device. Times from CUDA events.
   StageTimes evaluate_device(const float* D);
 
@@ -94,13 +109,13 @@ class CudaEvaluator : public Evaluator {
   // Bytes of the compact device output of one frame: 12 (N + R).
   size_t output_bytes() const;
   size_t device_bytes() const;  // device memory held
-  // The shared-memory limits the launches were planned with (cuda_api.h).
-  sffd_cuda_limits limits() const;
+  // The shared-memory limits the launches were planned with.
+  DeviceLimits limits() const;
 
   // ---- Hooks for tests and tools, not for users.
   // Fills the device outputs and intermediates with NaN (tests: every element must be
-  // written; the C ABI's testing entry).
-  void poison();
+  // written; the C boundary's testing entry).
+  void testing_poison();
   // The stream frames run on (a cudaStream_t), and one frame's device stages enqueued on it
   // with no synchronisation: D (host memory) staged, then mark(name) called before each stage
   // and mark(nullptr) after the last (where bench/native's timing harness records its events).

@@ -129,22 +129,16 @@ void CpuEvaluator::tessellate_positions(const PlanView& pv, const FrameView& fv,
 
 std::string CpuEvaluator::isa() const { return kernels_->isa; }
 
-StageTimes CpuEvaluator::evaluate(const float* D, float* positions, float* corner_normals) {
-  return run(D, positions, corner_normals, nullptr, false);
+StageTimes CpuEvaluator::evaluate(const float* D, float* positions, float* corner_normals, Frame frame) {
+  return run(D, positions, corner_normals, nullptr, frame);
 }
 
-StageTimes CpuEvaluator::evaluate_compact(const float* D, float* positions, float* render_normals) {
-  return run(D, positions, nullptr, render_normals, false);
+StageTimes CpuEvaluator::evaluate_compact(const float* D, float* positions, float* render_normals, Frame frame) {
+  return run(D, positions, nullptr, render_normals, frame);
 }
 
-StageTimes CpuEvaluator::evaluate_positions(const float* D, float* positions) {
-  return run(D, positions, nullptr, nullptr, false);
-}
-
-StageTimes CpuEvaluator::update(const float* D, float* positions, float* corner_normals, float* render_normals) {
-  if (corner_normals && render_normals)
-    throw std::invalid_argument("CpuEvaluator::update: corner_normals or render_normals, not both");
-  return run(D, positions, corner_normals, render_normals, true);
+StageTimes CpuEvaluator::evaluate_positions(const float* D, float* positions, Frame frame) {
+  return run(D, positions, nullptr, nullptr, frame);
 }
 
 // The whole frame; the normals tessellated per triangle corner (corner_normals), once per
@@ -156,7 +150,7 @@ StageTimes CpuEvaluator::update(const float* D, float* positions, float* corner_
 // with the same code, so the positions are bitwise the same
 // (PositionsOnlyMatchesEvaluateBitwise, test_cpu_evaluator.cpp).
 StageTimes CpuEvaluator::run(const float* D, float* positions, float* corner_normals, float* render_normals,
-                             bool update) {
+                             Frame frame) {
   using Clock = std::chrono::steady_clock;
   const bool normals = corner_normals || render_normals;
   const Plan& plan = *plan_;
@@ -170,12 +164,13 @@ StageTimes CpuEvaluator::run(const float* D, float* positions, float* corner_nor
     times.emplace_back(name, std::chrono::duration<double, std::milli>(t1 - t0).count());
     t0 = t1;
   };
-  // An incremental frame (update) continues the previous one: same kind, same arrays. The
+  // An incremental frame continues the previous one: same kind, same arrays. The
   // state is cleared first, so that a frame that throws (Cancelled) leaves none to continue.
   const Kind kind = render_normals ? Kind::compact : corner_normals ? Kind::corners : Kind::positions;
   const float* out_normals = corner_normals ? corner_normals : render_normals;
   const long long points = (long long)plan.dims[0] * plan.dims[1] * plan.dims[2];
-  bool incremental = update && last_kind_ == kind && last_out_[0] == positions && last_out_[1] == out_normals;
+  bool incremental = frame == Frame::incremental && last_kind_ == kind && last_out_[0] == positions &&
+                     last_out_[1] == out_normals;
   last_kind_ = Kind::none;
   last_counts_ = {points, plan.patches};
   if (incremental) {

@@ -30,39 +30,25 @@ class CpuEvaluator : public Evaluator {
   std::string name() const override { return "cpu"; }
   std::string isa() const;  // the path this evaluator runs
   const Plan& plan() const override { return *plan_; }
-  StageTimes evaluate(const float* D, float* positions, float* corner_normals) override;
-  // Positions only (N x 3), bitwise the same as evaluate's, for callers that compute normals
-  // from the dense geometry themselves (the Blender add-on's viewport): Jacobians only where
-  // the edge adjustment reads them (the sub-vertex samples), geometry patches only, no normal
-  // tessellation; with centre rows (plan/centre_rows.hpp) only the sub-vertex and edge
-  // constraint samples and no fitting. Stage names as evaluate's, without "tessellate_normals".
-  StageTimes evaluate_positions(const float* D, float* positions);
-  // The compact layout (evaluator.hpp): evaluate's stages, the normals tessellated once per
-  // render vertex by its owner instead of once per triangle corner. render_normals null:
-  // evaluate_positions.
-  StageTimes evaluate_compact(const float* D, float* positions, float* render_normals) override;
-  // Incremental frames: the frame evaluate (corner_normals), evaluate_compact
-  // (render_normals) or evaluate_positions (both null) makes, recomputing only what reads a
-  // control point whose values differ (bitwise) from the previous frame's (eval/cpu_update.hpp):
-  // an edit that moves a few points of a large lattice costs the part of the mesh they reach.
-  // The output arrays must be the previous frame's, of the same kind, holding its output
-  // untouched: what no changed point reaches is left as it is there. When the previous frame
-  // was of another kind or wrote other arrays, or there was none (or it failed), a whole
-  // frame. Bitwise the whole frame's output either way.
-  StageTimes update(const float* D, float* positions, float* corner_normals, float* render_normals);
-  // What the last frame recomputed.
-  struct FrameCounts {
-    long long changed_points = 0;  // control points that differ from the frame before (all: a whole frame)
-    long long patches = 0;         // patches recomputed (all: a whole frame)
-  };
-  FrameCounts last_frame() const { return last_counts_; }
-  // Host memory of the incremental frames' tables (built on the first update; 0 before).
+  // The frames of evaluator.hpp, incremental ones included (eval/cpu_update.hpp): an edit
+  // that moves a few points of a large lattice costs the part of the mesh they reach.
+  StageTimes evaluate(const float* D, float* positions, float* corner_normals, Frame frame) override;
+  // The compact layout: evaluate's stages, the normals tessellated once per render vertex by
+  // its owner instead of once per triangle corner. render_normals null: evaluate_positions.
+  StageTimes evaluate_compact(const float* D, float* positions, float* render_normals, Frame frame) override;
+  // Positions only, bitwise the same as evaluate's: Jacobians only where the edge adjustment
+  // reads them (the sub-vertex samples), geometry patches only, no normal tessellation; with
+  // centre rows (plan/centre_rows.hpp) only the sub-vertex and edge constraint samples and no
+  // fitting. Stage names as evaluate's, without "tessellate_normals".
+  StageTimes evaluate_positions(const float* D, float* positions, Frame frame) override;
+  FrameCounts last_frame() const override { return last_counts_; }
+  // Host memory of the incremental frames' tables (built on the first incremental frame; 0 before).
   size_t update_bytes() const { return reach_ ? reach_->bytes() : 0; }
   int threads() const { return threads_; }
 
  private:
   enum class Kind { none, positions, corners, compact };
-  StageTimes run(const float* D, float* positions, float* corner_normals, float* render_normals, bool update);
+  StageTimes run(const float* D, float* positions, float* corner_normals, float* render_normals, Frame frame);
   void tessellate_positions(const PlanView& pv, const FrameView& fv, const ChangedRuns* runs);
   std::shared_ptr<const Plan> plan_;
   int threads_;
@@ -77,7 +63,7 @@ class CpuEvaluator : public Evaluator {
   long long centre_widest_ = 0;  // the plan's longest centre row (floats)
   std::vector<float> sample_value_, sample_jacobian_, end_normal_, edge_control_, patch_control_, patch_normal_;
   // Incremental frames: the previous frame's kind, output arrays and control values, and what
-  // each element reads (built on the first update).
+  // each element reads (built on the first incremental frame).
   Kind last_kind_ = Kind::none;
   const float* last_out_[2] = {nullptr, nullptr};
   std::vector<float> last_D_;

@@ -1,7 +1,7 @@
-// Incremental frames of CpuEvaluator (CpuEvaluator::update): a frame recomputes only the
-// elements (sample batches, end normals, edges, patches) that read a control point that
-// changed since the previous frame, and keeps the rest of the evaluator's buffers and of the
-// output as they are.
+// Incremental frames of CpuEvaluator (Frame::incremental, eval/evaluator.hpp): a frame
+// recomputes only the elements (sample batches, end normals, edges, patches) that read a
+// control point that changed since the previous frame, and keeps the rest of the evaluator's
+// buffers and of the output as they are.
 //
 // Every element reads the control values of a block of the lattice: a sample those of its
 // box (its three axis pieces), an end normal its sample's, an edge its end and constraint

@@ -1,7 +1,7 @@
-// _core's side of the CUDA boundary (cuda_loader.hpp, cuda_api.h): finds, loads and checks
-// libsmoothffd_cuda.so, and turns its error codes back into exceptions. Compiled into the
-// module with the host compiler; needs no CUDA header or library.
-#include "smoothffd/cuda/cuda_loader.hpp"
+// _core's side of the CUDA boundary (cuda_proxy.hpp, cuda/cuda_api.h): finds, loads and
+// checks libsmoothffd_cuda.so, and turns its error codes back into exceptions. Compiled into
+// the module with the host compiler; needs no CUDA header or library.
+#include "smoothffd/cuda_proxy/cuda_proxy.hpp"
 
 #include "smoothffd/core/platform.hpp"
 
@@ -108,7 +108,7 @@ std::pair<bool, std::string> cuda_status() {
   const Loaded& l = loaded();
   if (!l.api) return {false, l.why};
   char msg[2048] = {0};
-  const int ok = l.api->status(msg, sizeof(msg));
+  const int ok = l.api->cuda_status(msg, sizeof(msg));
   return {ok != 0, std::string(msg)};
 }
 
@@ -136,11 +136,31 @@ CudaEvaluator::~CudaEvaluator() {
   if (handle_) api_->evaluator_destroy(handle_);
 }
 
-StageTimes CudaEvaluator::evaluate(const float* D, float* positions, float* corner_normals) {
+// As the CPU evaluator counts a whole frame, from its start.
+void CudaEvaluator::count_whole_frame() {
+  const Plan& p = *plan_;
+  last_counts_.changed_points = (long long)p.dims[0] * p.dims[1] * p.dims[2];
+  last_counts_.patches = p.patches;
+}
+
+StageTimes CudaEvaluator::evaluate(const float* D, float* positions, float* corner_normals, Frame) {
+  count_whole_frame();
   sffd_cuda_error err{};
   sffd_cuda_times t{};
   check(api_->evaluate(handle_, D, positions, corner_normals, &t, &err), err);
   return to_times(t);
+}
+
+StageTimes CudaEvaluator::evaluate_compact(const float* D, float* positions, float* render_normals, Frame) {
+  count_whole_frame();
+  sffd_cuda_error err{};
+  sffd_cuda_times t{};
+  check(api_->evaluate_compact(handle_, D, positions, render_normals, &t, &err), err);
+  return to_times(t);
+}
+
+StageTimes CudaEvaluator::evaluate_positions(const float* D, float* positions, Frame frame) {
+  return evaluate(D, positions, nullptr, frame);
 }
 
 StageTimes CudaEvaluator::evaluate_device(const float* D) {
@@ -165,13 +185,6 @@ sffd_cuda_limits CudaEvaluator::limits() const {
 void CudaEvaluator::testing_poison() {
   sffd_cuda_error err{};
   check(api_->testing_poison(handle_, &err), err);
-}
-
-StageTimes CudaEvaluator::evaluate_compact(const float* D, float* positions, float* normals) {
-  sffd_cuda_error err{};
-  sffd_cuda_times t{};
-  check(api_->evaluate_compact(handle_, D, positions, normals, &t, &err), err);
-  return to_times(t);
 }
 
 }  // namespace sffd

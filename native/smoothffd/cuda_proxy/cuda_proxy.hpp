@@ -1,9 +1,11 @@
-// The CUDA backend as the Python module sees it: the same C++ interface as the evaluator in
-// libsmoothffd_cuda.so (cuda_evaluator.hpp), implemented over that library's C table
-// (cuda_api.h). The library is looked for next to the module's own file and dlopened the first
-// time the backend is asked for (cuda_status(), or creating an evaluator), so
-// the module itself needs no CUDA library at all: without the library, the driver or a GPU,
-// everything on the CPU works and cuda_status() says why CUDA does not.
+// The CUDA backend as the Python module sees it: the one C++ proxy over the C boundary of
+// libsmoothffd_cuda.so (cuda/cuda_api.h, the only file of that library included here). The
+// library is looked for next to the module's own file and dlopened the first time the backend
+// is asked for (cuda_status(), or creating an evaluator), so the module itself needs no CUDA
+// library at all: without the library, the driver or a GPU, everything on the CPU works and
+// cuda_status() says why CUDA does not.
+//
+// This folder holds the files compiled into _core; cuda/ those of libsmoothffd_cuda.so.
 //
 // Error codes from the library come back as CudaError (RuntimeError in Python),
 // CudaOutOfMemory (MemoryError), std::invalid_argument (ValueError) or std::logic_error.
@@ -35,11 +37,17 @@ std::pair<bool, std::string> cuda_status();
 void* cuda_host_alloc(size_t bytes);
 void cuda_host_free(void* ptr);
 
+// The CUDA evaluator: each method is one call of the library's table (cuda_api.h says what
+// each does), except the frames the table has no entry for, made of those it has:
+//   evaluate_positions: evaluate with null corner normals (the whole frame on the device,
+//                       positions copied back, the normals' copy back and gather skipped);
+//   Frame::incremental: the backend has no incremental path, every frame is a whole one
+//                       (last_frame() says so: every control point, every patch).
 class CudaEvaluator : public Evaluator {
  public:
-  // path: "fused" (or "") or "cublas". shared_memory_limit: 0
-  // (the device's own) or the shared memory a block may opt in to on a smaller device to
-  // emulate (at least 48 KiB; tests of the launch choices).
+  // path: "fused" (or "") or "cublas". shared_memory_limit: 0 (the device's own) or the
+  // shared memory a block may opt in to on a smaller device to emulate (at least 48 KiB;
+  // tests of the launch choices).
   explicit CudaEvaluator(std::shared_ptr<const Plan> plan, const std::string& path = "",
                          int64_t shared_memory_limit = 0);
   ~CudaEvaluator() override;
@@ -48,22 +56,27 @@ class CudaEvaluator : public Evaluator {
   std::string name() const override { return "cuda"; }
   const Plan& plan() const override { return *plan_; }
 
-  StageTimes evaluate(const float* D, float* positions, float* corner_normals) override;
+  StageTimes evaluate(const float* D, float* positions, float* corner_normals, Frame frame) override;
+  StageTimes evaluate_compact(const float* D, float* positions, float* render_normals, Frame frame) override;
+  StageTimes evaluate_positions(const float* D, float* positions, Frame frame) override;
+  FrameCounts last_frame() const override { return last_counts_; }
+
   StageTimes evaluate_device(const float* D);
   std::string path() const;
+  std::string kernel() const;
   size_t output_bytes() const;
   size_t device_bytes() const;
-  std::string kernel() const;
   sffd_cuda_limits limits() const;
   // Testing (smoothffd._core._testing): the device outputs filled with NaN.
   void testing_poison();
-  StageTimes evaluate_compact(const float* D, float* positions, float* normals) override;
 
  private:
+  // A whole frame's counts: every control point, every patch.
+  void count_whole_frame();
   std::shared_ptr<const Plan> plan_;
   const sffd_cuda_api* api_ = nullptr;
   sffd_cuda_evaluator* handle_ = nullptr;
+  FrameCounts last_counts_;
 };
-
 
 }  // namespace sffd

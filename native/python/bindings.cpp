@@ -18,6 +18,7 @@
 #include "smoothffd/lattice/lattice_spec.hpp"
 #include "smoothffd/plan/plan.hpp"
 #include "smoothffd/plan/sources.hpp"
+#include "smoothffd/eval/fit_error.hpp"
 // The CUDA backend, loaded from libsmoothffd_cuda.so when first asked for: the module needs no
 // CUDA library (cuda_proxy/cuda_proxy.hpp).
 #include "smoothffd/cuda_proxy/cuda_proxy.hpp"
@@ -464,6 +465,25 @@ PYBIND11_MODULE(_core, m) {
   m.def("estimate_plan_bytes", &estimate_plan_bytes, py::arg("patches"), py::arg("sub_vertices"),
         py::arg("level"), py::arg("fit_degree"), py::arg("uvs"),
         "bytes of a plan, one frame's buffers and one per-corner result (build_plan's memory_limit check)");
+
+  m.def(
+      "estimate_fit_errors",
+      [](std::shared_ptr<Plan> plan, Arr<float> D, int threads) {
+        check_values(*plan, D);
+        py::array_t<float> geometry({(py::ssize_t)plan->patches}), normal({(py::ssize_t)plan->patches});
+        const float* d = D.data();
+        float* g = geometry.mutable_data();
+        float* n = normal.mutable_data();
+        interruptible([&] {
+          estimate_fit_errors(*plan, d, threads, g, n);
+          return 0;
+        });
+        return py::make_tuple(geometry, normal);
+      },
+      py::arg("plan").none(false), py::arg("values"), py::arg("threads") = 0,
+      "(geometry (P,), normal degrees (P,)): per patch, a bound on the distance between the "
+      "fitted cubic patch and the exact FFD of its flat piece, and an estimate of the normal "
+      "patch's angle from the deformed normal field (eval/fit_error.hpp)");
 
   m.def("cpu_isa", &cpu_isa,
         "the CPU evaluator's default per-frame code path on this CPU: on x86-64 'x86-64-v3' "

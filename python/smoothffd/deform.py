@@ -33,6 +33,9 @@ class Result:
     rest_positions: np.ndarray   # (N, 3) float32: preimage on the flat input faces
     sharp_edges: np.ndarray      # (K, 2) int32: output edges where the normals split
     stats: dict = field(default_factory=dict)
+    # deform(estimate_error=True), else None: per input face, see Deformer.estimate_errors
+    face_error: object = None          # (F,) float32, object units
+    face_normal_error: object = None   # (F,) float32, degrees
 
 
 @dataclass
@@ -55,6 +58,8 @@ class CompactResult:
     rest_positions: np.ndarray   # (N, 3) float32
     sharp_edges: np.ndarray      # (K, 2) int32
     stats: dict = field(default_factory=dict)
+    face_error: object = None          # as Result's
+    face_normal_error: object = None
 
     def corner_normals(self):
         """(T, 3, 3) per-corner normals, Result.corner_normals' layout (a new array)."""
@@ -224,7 +229,7 @@ class Deformer:
         return self._static
 
     def deform(self, lattice_or_points=None, out=None, normals=True, layout="corners",
-               incremental=False):
+               incremental=False, estimate_error=False):
         """Deform with new control values.
 
         Pass a lattice (replanned automatically if its structure differs from the planned
@@ -257,12 +262,57 @@ class Deformer:
         bitwise a whole frame's. Anything else (no `out`, another result, other normals or
         layout, a new plan) runs a whole frame, as does every frame of the CUDA backend (it
         has no incremental path). `stats["recomputed_patches"]` says what ran.
+
+        estimate_error: also fill `face_error` and `face_normal_error` (estimate_errors) and
+        put their maxima in `stats` ("max_face_error", "max_face_normal_error_deg"). Costs
+        about one more CPU pass over the samples, on either backend.
         """
         if layout not in _LAYOUTS:
             raise ValueError(f"layout: expected one of {_LAYOUTS}, got {layout!r}")
+        estimate_error = flag(estimate_error, "estimate_error")
         with self._lock:
-            return self._deform(lattice_or_points, out, flag(normals, "normals"), layout,
-                                flag(incremental, "incremental"))
+            res = self._deform(lattice_or_points, out, flag(normals, "normals"), layout,
+                               flag(incremental, "incremental"))
+            if estimate_error:
+                t0 = time.perf_counter()
+                res.face_error, res.face_normal_error = self._face_errors(_control_values_f32(self.lattice))
+                res.stats["max_face_error"] = float(res.face_error.max(initial=0.0))
+                res.stats["max_face_normal_error_deg"] = float(res.face_normal_error.max(initial=0.0))
+                res.stats["estimate_error_ms"] = (time.perf_counter() - t0) * 1e3
+            return res
+
+    def estimate_errors(self, lattice_or_points=None):
+        """(face_error, face_normal_error), each (F,) float32 for the mesh's F faces: how far
+        the smooth result of each input face can be from the exact free-form deformation of the
+        face itself, for this lattice (None: the current one) or these new points.
+
+        face_error (object units) bounds, over the face, the distance between each cubic patch
+        as fitted and the exact FFD of its flat piece (docs/algorithm.md, "Error estimate"):
+        where the face's normals say it is flat, the output's whole distance from the exact
+        image; on a smooth face the deliberate rounding toward its normals comes on top and
+        is not counted. face_normal_error (degrees) estimates the normal patches' angle from
+        the exactly deformed normal field. Per patch the largest over a face; computed on the
+        CPU from the plan and the control values. Large values say the lattice is too coarse
+        for the mesh there (or too strongly bent): smaller knot spans, or a finer mesh.
+        """
+        with self._lock:
+            lat = self.lattice if lattice_or_points is None else lattice_or_points
+            if not isinstance(lat, _Lattice):
+                lat = self.lattice.with_points(lat)
+            values = _control_values_f32(lat)
+            if lat.structure_key() != self._key:
+                self._plan_for(lat)
+            self.lattice = lat
+            return self._face_errors(values)
+
+    def _face_errors(self, values):
+        geometry, normal = _core.estimate_fit_errors(self.plan, values, self.threads)
+        faces = self.plan.patch_face()
+        fe = np.zeros(self.mesh.face_count, np.float32)
+        fn = np.zeros(self.mesh.face_count, np.float32)
+        np.maximum.at(fe, faces, geometry)
+        np.maximum.at(fn, faces, normal)
+        return fe, fn
 
     def _deform(self, lattice_or_points, out=None, normals=True, layout="corners",
                 incremental=False):
@@ -363,6 +413,7 @@ class Deformer:
             return dict(self._evaluator.evaluate_device(values))
 
 
-def deform(mesh, lattice, level=10, device="auto", normals=True, layout="corners"):
+def deform(mesh, lattice, level=10, device="auto", normals=True, layout="corners", estimate_error=False):
     """One-shot smooth FFD of `mesh` by `lattice`; see `Deformer` and docs/api.md."""
-    return Deformer(mesh, lattice, level=level, device=device).deform(normals=normals, layout=layout)
+    return Deformer(mesh, lattice, level=level, device=device).deform(normals=normals, layout=layout,
+                                                                     estimate_error=estimate_error)

@@ -55,8 +55,6 @@ void validate(const InputMesh& m) {
     if (!std::isfinite(x)) throw std::invalid_argument("positions: contain NaN or Inf");
 }
 
-constexpr int kMaxPlanLevel = 1024;  // 1M triangles a patch; the Python API stops at 64
-
 uint32_t pack_pieces(const int p[3]) { return uint32_t(p[0]) | uint32_t(p[1]) << 10 | uint32_t(p[2]) << 20; }
 
 // The evaluators run in float: every value of the lattice tables (step 7) must be a finite
@@ -154,8 +152,8 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   if (opt.level < 1) throw std::invalid_argument("level: must be at least 1");
   // The tessellation tables grow as L^2 whatever the mesh: level 2^31 - 1 from the bindings
   // spent 11 s allocating before a MemoryError (found by native/fuzz/fuzz_bindings.py).
-  if (opt.level > kMaxPlanLevel)
-    throw std::invalid_argument("level: at most " + std::to_string(kMaxPlanLevel) + " (L^2 triangles a patch), got " +
+  if (opt.level > kMaxLevel)
+    throw std::invalid_argument("level: at most " + std::to_string(kMaxLevel) + " (L^2 triangles a patch), got " +
                                 std::to_string(opt.level));
   for (int a = 0; a < 3; ++a)
     if (lattice.axes[a].pieces().size() > 1023)

@@ -6,8 +6,8 @@ imports of sibling modules go one way, from Blender's entry points down to the s
 - the graph of sibling imports has no cycle;
 - `state`, which holds every modifier's state and every value kept between calls, imports
   no sibling;
-- no module but `state` keeps a mutable value at module level that it changes (a `global`
-  statement).
+- no module but `state` keeps a mutable value at module level: no `global` statement, no
+  module-level list, dict or set.
 """
 import ast
 import os
@@ -80,6 +80,14 @@ def find_cycle(edges):
     return None
 
 
+def _mutable(value):
+    """A list, dict or set display or comprehension, or a call of list(), dict(), set()."""
+    if isinstance(value, (ast.List, ast.Dict, ast.Set, ast.ListComp, ast.DictComp, ast.SetComp)):
+        return True
+    return isinstance(value, ast.Call) and isinstance(value.func, ast.Name) and \
+        value.func.id in ("list", "dict", "set")
+
+
 def problems(folder=ADDON):
     """Every rule of the module docstring that the package at `folder` breaks, as text."""
     mods = modules(folder)
@@ -88,9 +96,14 @@ def problems(folder=ADDON):
         for m, line, in_function in sibling_imports(tree, mods):
             if in_function:
                 out.append(f"{name}.py:{line}: imports {m} inside a function")
+        if name == "state":
+            continue
         for node in ast.walk(tree):
-            if isinstance(node, ast.Global) and name != "state":
+            if isinstance(node, ast.Global):
                 out.append(f"{name}.py:{node.lineno}: global {', '.join(node.names)}")
+        for node in tree.body:
+            if isinstance(node, (ast.Assign, ast.AnnAssign)) and _mutable(node.value):
+                out.append(f"{name}.py:{node.lineno}: a mutable value at module level")
     edges = graph(mods)
     cycle = find_cycle(edges)
     if cycle:
@@ -110,10 +123,13 @@ def test_the_checks_see_a_cycle_and_an_import_in_a_function(tmp_path):
     """The rules above, each broken once in a small package of their own."""
     (tmp_path / "state.py").write_text("from . import a\n")
     (tmp_path / "a.py").write_text("from . import b\n")
-    (tmp_path / "b.py").write_text("import os\n\ndef f():\n    from . import a\n    global x\n")
+    (tmp_path / "b.py").write_text("import os\n\ndef f():\n    from . import a\n    global x\n\n"
+                                   "cache = {}\nNAMES = ('a', 'b')\n")
     found = problems(str(tmp_path))
     assert "b.py:4: imports a inside a function" in found
     assert "b.py:5: global x" in found
+    assert "b.py:7: a mutable value at module level" in found
+    assert not any(f.startswith("b.py:8") for f in found), found
     assert "state imports a" in found
     assert any(f.startswith("import cycle: ") and "a -> b -> a" in f for f in found), found
 

@@ -52,7 +52,7 @@ def pinned_empty(shape, keep):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--device", default="cuda", choices=("cpu", "cuda"))
+    ap.add_argument("--device", default="cuda", choices=smoothffd.DEVICES[1:])   # not "auto"
     ap.add_argument("--levels", type=int, nargs="+", default=[10])
     ap.add_argument("--repeats", type=int, default=21)
     args = ap.parse_args()

@@ -17,7 +17,7 @@ Workloads (default: sphere):
            level 2 beside Subsurf 1: one lattice point moved (the middle one, and (1, 1, 1)
            next to a corner) against all points moved.
 Smooth FFD rows on 4.5+: exact normals on every update (background mode), and "live", the
-viewport while a point is dragged (positions only, modifier_update.LIVE).
+viewport while a point is dragged (positions only, state.LIVE).
 
 Each row splits its median update into where the time went, from marker handlers placed
 first and last in depsgraph_update_pre/post: "pre" (Smooth FFD's work in
@@ -39,7 +39,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # The add-on and the core from the source tree (a development build: scripts/build.sh).
 sys.path[:0] = [os.path.join(ROOT, "addon"), os.path.join(ROOT, "python")]
 import smooth_ffd  # noqa: E402
-from smooth_ffd import compat, handlers, modifier_update  # noqa: E402
+from smooth_ffd import compat, handlers, pipeline, state  # noqa: E402
 
 
 def argv():
@@ -271,7 +271,7 @@ def time_edit(lat, obj, repeats, mod=None, early_modes=(True,), moves=("one",)):
             t_end = time.perf_counter()
             times.append(1e3 * (t_end - t))
             phases.append({k: 1e3 * v for k, v in _phases(t, t_end).items()})
-            lt = modifier_update.last_timing(obj, mod) if mod is not None else None
+            lt = pipeline.last_timing(obj, mod) if mod is not None else None
             if lt:
                 own.append(lt)
     _set_early(True)
@@ -295,7 +295,7 @@ def time_reevaluation(obj, repeats):
     handlers muted): what showing any update costs at least, the copy its modifier makes of
     the result included."""
     times = []
-    with handlers.muted():
+    with state.muted():
         for _ in range(repeats):
             obj.update_tag()
             t = time.perf_counter()
@@ -412,11 +412,11 @@ def sffd_rows(workload, mesh, lat, levels, moves=("one",)):
             sys.exit(f"bench_addon.py: Smooth FFD level {level} on {workload}: "
                      f"{smooth_ffd.status(mod)}")
         # 4.5+: background mode computes exact normals on every update; a window's viewport
-        # computes positions only while a point is dragged (modifier_update.LIVE): both rows.
+        # computes positions only while a point is dragged (state.LIVE): both rows.
         for live in ((None, True) if compat.CHEAP_EXACT_NORMALS else (None,)):
-            modifier_update.LIVE = live
+            state.LIVE = live
             timed = time_edit(lat, obj, REPEATS, mod, moves=moves)
-            modifier_update.LIVE = None
+            state.LIVE = None
             tris = evaluated_tris(obj)
             floor = time_reevaluation(obj, REPEATS)
             for move in moves:

@@ -25,7 +25,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path[:0] = [os.path.join(ROOT, "addon"), os.path.join(ROOT, "python")]
 import smooth_ffd  # noqa: E402
-from smooth_ffd import compat, modifier_update, nodegroup  # noqa: E402
+from smooth_ffd import compat, nodegroup  # noqa: E402
 
 
 def argv():

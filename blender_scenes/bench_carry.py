@@ -20,7 +20,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # The add-on and the core from the source tree (a development build: scripts/build.sh).
 sys.path[:0] = [os.path.join(ROOT, "addon"), os.path.join(ROOT, "python")]
 import smooth_ffd  # noqa: E402
-from smooth_ffd import meshio, modifier_update  # noqa: E402
+from smooth_ffd import meshio, pipeline  # noqa: E402
 
 
 
@@ -117,9 +117,9 @@ def run_case(lat, triangulate, with_data):
     mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=LEVEL, render_level=LEVEL)
     bpy.context.view_layer.update()
     first = 1e3 * (time.perf_counter() - t)
-    lt = dict(modifier_update.last_timing(obj, mod) or {})
+    lt = dict(pipeline.last_timing(obj, mod) or {})
     edit = time_edit(lat, obj, REPEATS)
-    le = modifier_update.last_timing(obj, mod) or {}
+    le = pipeline.last_timing(obj, mod) or {}
     weight_ms = None
     if with_data:
         obj.vertex_groups["full"].add([5], 0.123, 'REPLACE')
@@ -127,7 +127,7 @@ def run_case(lat, triangulate, with_data):
         t = time.perf_counter()
         bpy.context.view_layer.update()
         weight_ms = 1e3 * (time.perf_counter() - t)
-        lw = modifier_update.last_timing(obj, mod) or {}
+        lw = pipeline.last_timing(obj, mod) or {}
     t = time.perf_counter()
     smooth_ffd.apply_smooth_ffd(obj, mod)
     apply_ms = 1e3 * (time.perf_counter() - t)

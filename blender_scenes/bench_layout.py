@@ -1,7 +1,7 @@
 """The core's two output layouts in the add-on, update by update in one run: "compact" (a normal
 per render vertex: written per vertex where nothing splits, else gathered per corner through
 render_triangles), "corners" (a normal per triangle corner from the core), and the add-on's
-own choice per plan (modifier_update._layout). Prints, asserts nothing.
+own choice per plan (plans.layout). Prints, asserts nothing.
 
     blender -b --factory-startup --python blender_scenes/bench_layout.py [-- REPEATS]
     ~/.cache/smoothffd/venv-bpy-5.0/bin/python blender_scenes/bench_layout.py [REPEATS]
@@ -10,7 +10,7 @@ Scenes: the 46.8k-triangle sphere of bench_addon.py (smooth: nothing splits) and
 sphere with two meridians (the great circle y = 0) marked sharp (its normals split there), exact normals (the
 Exact Normals option on 3.4-4.4, where exact normals are slow: level 4 only there; 4.5+
 writes them on every update: levels 4 and 10). One update = move a lattice point until the
-evaluated mesh is ready; the layouts alternate update by update (modifier_update.LAYOUT), so
+evaluated mesh is ready; the layouts alternate update by update (state.LAYOUT), so
 both see the same machine load. Per row: median update, the core's deform, the normals
 write (with the gather, where there is one) and the path used.
 """
@@ -25,7 +25,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path[:0] = [os.path.join(ROOT, "addon"), os.path.join(ROOT, "python")]
 import smooth_ffd  # noqa: E402
-from smooth_ffd import compat, modifier_update  # noqa: E402
+from smooth_ffd import compat, objects, pipeline, plans, state  # noqa: E402
 
 
 def argv():
@@ -36,7 +36,7 @@ def argv():
 
 
 REPEATS = int(argv()[0]) if argv() else 5
-LAYOUTS = ("corners", "compact", None)   # None: the add-on's choice (modifier_update._layout)
+LAYOUTS = ("corners", "compact", None)   # None: the add-on's choice (plans.layout)
 
 
 def sphere(name, sharp=False):
@@ -80,7 +80,7 @@ def run(lat, obj, mod):
     p = lat.data.points[62]
     for i in range(REPEATS + 1):          # the first round warms both layouts up
         for layout in LAYOUTS:
-            modifier_update.LAYOUT = layout   # None: the add-on's own choice
+            state.LAYOUT = layout   # None: the add-on's own choice
             p.co_deform.z += 0.01 * (1 if i % 2 == 0 else -1)
             t = time.perf_counter()
             bpy.context.view_layer.update()
@@ -88,8 +88,8 @@ def run(lat, obj, mod):
             len(obj.evaluated_get(dg).data.vertices)
             ms = 1e3 * (time.perf_counter() - t)
             if i:
-                out[layout].append((ms, dict(modifier_update.last_timing(obj, mod))))
-    modifier_update.LAYOUT = None
+                out[layout].append((ms, dict(pipeline.last_timing(obj, mod))))
+    state.LAYOUT = None
     return out
 
 
@@ -111,12 +111,11 @@ def main():
             compat.set_modifier_input(mod, "Exact Normals", True)
             obj.update_tag()
             bpy.context.view_layer.update()
-            res = modifier_update.state_of(obj, mod).result
+            res = objects.state_of(obj, mod).result
             got = run(lat, obj, mod)
-            rv = modifier_update.state_of(obj, mod).deformer.plan.render_vertices()[0]
+            rv = objects.state_of(obj, mod).deformer.plan.render_vertices()[0]
             scene = "sharp meridians" if sharp else "smooth"
-            chosen = modifier_update._layout(modifier_update.state_of(obj, mod)
-                                             .deformer.plan)
+            chosen = plans.layout(objects.state_of(obj, mod).deformer)
             print(f"{scene}, level {level}: {len(res.triangles)} triangles, "
                   f"{len(res.positions)} vertices, {len(rv)} render vertices")
             for layout in LAYOUTS:

@@ -26,7 +26,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path[:0] = [os.path.join(ROOT, "addon"), os.path.join(ROOT, "python"), HERE]
 import smooth_ffd  # noqa: E402
-from smooth_ffd import modifier_update, stack_input  # noqa: E402
+from smooth_ffd import pipeline, state  # noqa: E402
 import character as C  # noqa: E402
 
 
@@ -96,7 +96,7 @@ def main():
           f"{FRAMES[0]}-{FRAMES[-1]}, {ROUNDS} rounds interleaved; load average "
           f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     times = {o.name: [] for o in objects}
-    reads0, plans0 = dict(stack_input.counters), modifier_update.plans_built[0]
+    reads0, plans0 = dict(state.stack_counters), state.plans_built[0]
     timings = []
     for r in range(ROUNDS):
         for obj in objects:
@@ -104,8 +104,8 @@ def main():
             ms = play(obj, sc)
             times[obj.name] += ms[1:]
             if obj is sffd:
-                timings.append(modifier_update.last_timing(sffd, mod))
-    reads = {k: stack_input.counters[k] - reads0[k] for k in reads0}
+                timings.append(pipeline.last_timing(sffd, mod))
+    reads = {k: state.stack_counters[k] - reads0[k] for k in reads0}
     frames_sffd = ROUNDS * (len(FRAMES) - 1)
     print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}; "
           f"median ms per frame over {frames_sffd} frames each")
@@ -127,7 +127,7 @@ def main():
           f"(mesh {split.get('mesh_write_ms', 0):.1f}, carry {split.get('carry_ms', 0):.1f}, "
           f"normals {split.get('normals_ms', 0):.1f}); stack readings {reads['reads']} for "
           f"{frames_sffd + ROUNDS} frames shown, forced evaluations {reads['forced']}, deferred "
-          f"{reads['deferred']}, plans built {modifier_update.plans_built[0] - plans0}")
+          f"{reads['deferred']}, plans built {state.plans_built[0] - plans0}")
     m0, m1 = med[f"subsurf{closest}"], med["smooth_ffd"]
     print(f"fps Smooth FFD / Lattice + Subsurf {closest}: {m0 / m1:.2f}x "
           f"({1e3 / m1:.1f} vs {1e3 / m0:.1f} fps; triangles {target} vs "

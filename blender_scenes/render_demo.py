@@ -19,7 +19,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import common  # noqa: E402
 import smooth_ffd  # noqa: E402
-from smooth_ffd import modifier_update  # noqa: E402
+from smooth_ffd import pipeline  # noqa: E402
 
 import smoothffd  # noqa: E402  (python/ is on sys.path through common)
 from smoothffd import io as sffd_io  # noqa: E402
@@ -103,7 +103,7 @@ def main():
     at_render = {}
 
     def record(_scene, *_):
-        t = modifier_update.last_timing(ffd_obj, mod)
+        t = pipeline.last_timing(ffd_obj, mod)
         if t and not ffd_obj.hide_render:
             at_render.update(triangles=t["triangles"], deform_ms=t["deform_ms"],
                              write_ms=t["write_ms"], level=t["level"],

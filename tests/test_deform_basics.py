@@ -190,3 +190,19 @@ def test_out_reuses_the_previous_result():
     np.testing.assert_array_equal(again.corner_normals, fresh.corner_normals)
     with pytest.raises(TypeError, match="out"):
         d.deform(out=np.zeros(3))
+
+
+def test_core_limits_and_names_are_the_packages():
+    """The maximum level and the device names are the core's (smoothffd._core), and every
+    layer takes the same: the package, the Deformer, build_plan."""
+    from smoothffd import _core
+    assert smoothffd.MAX_LEVEL == _core.MAX_LEVEL == 64
+    assert smoothffd.DEVICES == _core.DEVICES == ("auto", "cpu", "cuda")
+    tri = smoothffd.Mesh(np.array([[0, 0, 0], [0.5, 0, 0], [0, 0.5, 0.0]]), np.array([[0, 1, 2]]))
+    lat = smoothffd.BSplineLattice.identity([-1] * 3, [1] * 3, shape=(2, 2, 2), degree=(1, 1, 1))
+    top = smoothffd.Deformer(tri, lat, level=smoothffd.MAX_LEVEL, device="cpu")
+    assert top.deform().triangles.shape == (smoothffd.MAX_LEVEL ** 2, 3)
+    with pytest.raises(ValueError, match="level"):
+        smoothffd.Deformer(tri, lat, level=smoothffd.MAX_LEVEL + 1, device="cpu")
+    with pytest.raises(ValueError, match="device"):
+        smoothffd.Deformer(tri, lat, level=2, device="gpu")

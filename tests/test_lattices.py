@@ -666,6 +666,19 @@ def test_blender_bad_lattice_to_object(m):
     raises_naming(bl(lattice_to_object=m), "lattice_to_object")
 
 
+def test_is_singular_is_relative_to_the_matrix_scale():
+    """smoothffd.lattice.is_singular, the one singular-placement check (BlenderLattice and the
+    Blender add-on): the determinant of the matrix scaled by its largest entry against 1e-12,
+    so a uniform scale of 1e-20 or 1e200 is regular, one axis 1e-13 of the others is not."""
+    is_singular = smoothffd.lattice.is_singular
+    for scale in (1e-20, 1.0, 1e200):
+        assert not is_singular(np.diag([scale, scale, scale, 1.0]))
+    assert not is_singular(np.diag([1.0, 1.0, 1e-4, 1.0]))          # det(m / 1) = 1e-4
+    for m in (np.zeros((4, 4)), np.diag([1.0, 1.0, 1e-13, 1.0]), np.full((4, 4), np.nan)):
+        assert is_singular(m)
+    raises_naming(bl(lattice_to_object=np.diag([1.0, 1.0, 1e-13, 1.0])), "lattice_to_object")
+
+
 @pytest.mark.parametrize("s", [np.nan, np.inf, "strong", [1.0, 2.0]], ids=str)
 def test_blender_bad_strength(s):
     raises_naming(bl(strength=s), "strength")

@@ -56,6 +56,7 @@ def test_cube_split_normals_count(cuts, level):
     assert plan.patches == 6 * c * c * 2
     extra = 12 * c * (L - 1) + 12 * (c - 1) + 8 * 2
     assert plan.render_vertex_count == plan.output_vertices + extra
+    assert plan.splits_normals   # the cube's edges split every normal on them
     check_consistent(plan)
     n, r = cpu_normals_agree_within_classes(plan, lat, 1e-5)
     # Duplicates carry different (face) normals: 90 degrees apart on the identity lattice.
@@ -87,7 +88,19 @@ def test_smooth_sphere_has_no_duplicates(level):
     plan = plan_of(sphere_mesh(2), lat, level)
     assert plan.sub_vertices > plan.input_vertices  # clipped by the knot planes
     assert plan.render_vertex_count == plan.output_vertices
+    assert not plan.splits_normals
     rpos, rtri = check_consistent(plan)
     np.testing.assert_array_equal(rpos, np.arange(plan.output_vertices))
     np.testing.assert_array_equal(rtri, plan.triangles())
     cpu_normals_agree_within_classes(plan, lat, 1e-4)
+
+
+def test_deformer_splits_normals_is_the_plans():
+    """Deformer.splits_normals (what the Blender add-on asks to choose the layout and the
+    normals write) is the plan's: a flat-shaded cube splits, a smooth sphere does not."""
+    lat = smoothffd.BSplineLattice.identity([-1.1, -1.2, -1.05], [1.15, 1.1, 1.2], shape=(5, 5, 5),
+                                            degree=(2, 2, 2))
+    for mesh, splits in ((grid_cube(2, size=0.8), True), (sphere_mesh(2), False)):
+        d = smoothffd.Deformer(mesh, lat, level=3, device="cpu")
+        assert d.splits_normals is d.plan.splits_normals is splits
+        assert splits == (d.plan.render_vertex_count > d.plan.output_vertices)

@@ -21,54 +21,34 @@ size: every distinct frame is a full mesh (docs/addon.md).
 """
 import bpy
 
-from . import compat, modifier_update, nodegroup
-
-BAKE_KEY = "smooth_ffd_bake"         # "host", "frame" (objects) or "frames" (the host's group)
-LEVEL_KEY = "smooth_ffd_bake_level"  # host -> the level baked
-RANGE_KEY = "smooth_ffd_bake_frames"  # host -> [first, last] frame baked
-
-
-def bake_object(mod):
-    if not modifier_update._has_frames(mod):   # an older layout: no bake
-        return None
-    host = compat.get_modifier_input(mod, "Bake Object")
-    return host if host is not None and host.get(BAKE_KEY) == "host" else None
-
-
-def status_text(mod):
-    host = bake_object(mod)
-    if host is None:
-        return "Baked"
-    first, last = host.get(RANGE_KEY, (0, 0))
-    return (f"Baked: frames {first}-{last} show the bake (level {host.get(LEVEL_KEY, '?')}); "
-            f"edits show there after Clear Bake")
+from . import compat, frames, nodegroup, objects, pipeline, state
 
 
 def bake(obj, mod, frame_start, frame_end, scene=None):
     """Bakes frames frame_start..frame_end (inclusive) at the render level; returns the
     host object. Raises RuntimeError (nothing baked, any previous bake cleared) when a frame
-    has no valid result."""
-    from . import handlers   # handlers imports this module
+    has no valid result. The caller then updates every modifier for the frame shown
+    (handlers.update_all)."""
     frame_start, frame_end = int(frame_start), int(frame_end)
     if frame_end < frame_start:
         raise ValueError(f"frame_end {frame_end} is before frame_start {frame_start}")
     scene = scene if scene is not None else bpy.context.scene
-    if not modifier_update._has_frames(mod):
+    if not frames.has_frames(mod):
         nodegroup.migrate(mod)
     clear(obj, mod)
-    ro = modifier_update.result_object(obj, mod)
-    st = modifier_update._state(ro)
+    ro = objects.result_object(obj, mod)
+    st = state.of_result(ro, create=True)
     level = int(compat.get_modifier_input(mod, "Render Level"))
     old_frame = (scene.frame_current, scene.frame_subframe)
     segments = []     # [first, last, frame object]
     by_key = {}
     made = []
     try:
-        with handlers.muted():
+        with state.muted():
             for f in range(frame_start, frame_end + 1):
                 scene.frame_set(f)
                 depsgraph = bpy.context.evaluated_depsgraph_get()
-                modifier_update.update_modifier(obj, mod, depsgraph, render=True, scene=scene)
+                pipeline.update_modifier(obj, mod, state.Pass(depsgraph, scene=scene, render=True))
                 status = compat.get_modifier_input(mod, "Status")
                 if not status.startswith("OK") or st.last_key is None:
                     raise RuntimeError(f"Smooth FFD bake: frame {f}: {status}")
@@ -85,32 +65,31 @@ def bake(obj, mod, frame_start, frame_end, scene=None):
             # objects tagged: an ID input set afterwards gets no relation (Object Info would
             # read the host unevaluated) until something else rebuilds them.
             compat.set_modifier_input(mod, "Bake Object", host)
-            modifier_update.set_frames(mod, "Bake", (frame_start - 0.5, frame_end + 0.5))
+            frames.set_frames(mod, "Bake", (frame_start - 0.5, frame_end + 0.5))
     except BaseException:
         for fo in made:
             _remove_object(fo)
         raise
     finally:
-        with handlers.muted():
+        with state.muted():
             scene.frame_set(old_frame[0], subframe=old_frame[1])
     obj.update_tag()
-    handlers.update_all(scene)
     return host
 
 
 def clear(obj, mod):
     """Removes the bake (its host, group, frame objects and meshes); the modifier is live
     again on those frames. Returns whether there was one."""
-    if not modifier_update._has_frames(mod):
+    if not frames.has_frames(mod):
         return False
     host = compat.get_modifier_input(mod, "Bake Object")
-    had = host is not None or modifier_update.get_frames(mod, "Bake") != nodegroup.NEVER
+    had = host is not None or frames.get_frames(mod, "Bake") != state.NEVER
     compat.set_modifier_input(mod, "Bake Object", None)
-    modifier_update.set_frames(mod, "Bake", nodegroup.NEVER)
-    if host is not None and host.get(BAKE_KEY) == "host" and host.users == 0:
+    frames.set_frames(mod, "Bake", state.NEVER)
+    if host is not None and host.get(state.BAKE_KEY) == "host" and host.users == 0:
         remove_host(host)
     if had:
-        st = modifier_update.state_of(obj, mod)
+        st = objects.state_of(obj, mod)
         if st is not None:
             st.last_key = None   # the handlers write this frame's live result again
         obj.update_tag()
@@ -123,13 +102,13 @@ def remove_host(host):
     groups = [m.node_group for m in host.modifiers if m.type == 'NODES' and m.node_group]
     _remove_object(host)
     for group in groups:
-        if group.get(BAKE_KEY) != "frames" or group.users:
+        if group.get(state.BAKE_KEY) != "frames" or group.users:
             continue
-        frames = {n.inputs["Object"].default_value for n in group.nodes
+        frame_objects = {n.inputs["Object"].default_value for n in group.nodes
                   if n.bl_idname == 'GeometryNodeObjectInfo'}
         bpy.data.node_groups.remove(group)
-        for fo in frames:
-            if fo is not None and fo.get(BAKE_KEY) == "frame" and fo.users == 0:
+        for fo in frame_objects:
+            if fo is not None and fo.get(state.BAKE_KEY) == "frame" and fo.users == 0:
                 _remove_object(fo)
 
 
@@ -154,21 +133,21 @@ def _frame_object(obj, mod, ro, frame):
     # only): update() gives the copy caches of its own.
     mesh.update()
     fo = bpy.data.objects.new(name, mesh)
-    fo[BAKE_KEY] = "frame"
+    fo[state.BAKE_KEY] = "frame"
     for vg in ro.vertex_groups:
         fo.vertex_groups.new(name=vg.name)
     return fo
 
 
-def _host(obj, mod, segments, level, frames):
+def _host(obj, mod, segments, level, frame_range):
     name = f"{obj.name}.{mod.name}.bake"
     host = bpy.data.objects.new(name, bpy.data.meshes.new(name))
-    host[BAKE_KEY] = "host"
-    host[LEVEL_KEY] = level
-    host[RANGE_KEY] = list(frames)
+    host[state.BAKE_KEY] = "host"
+    host[state.LEVEL_KEY] = level
+    host[state.RANGE_KEY] = list(frame_range)
     group = bpy.data.node_groups.new(f"Smooth FFD bake: {obj.name} / {mod.name}",
                                      'GeometryNodeTree')
-    group[BAKE_KEY] = "frames"
+    group[state.BAKE_KEY] = "frames"
     compat.new_group_socket(group, 'INPUT', 'NodeSocketGeometry', "Geometry")
     compat.new_group_socket(group, 'OUTPUT', 'NodeSocketGeometry', "Geometry")
     gin = group.nodes.new('NodeGroupInput')

@@ -6,6 +6,8 @@ Blender release means editing only this file.
 import bpy
 import numpy as np
 
+from . import state
+
 VERSION = bpy.app.version[:2]
 
 # 4.1 removed use_auto_smooth / calc_normals_split; corner normals are always available.
@@ -77,12 +79,11 @@ def input_socket(group, name):
     raise KeyError(f"node group {group.name!r} has no input named {name!r}")
 
 
-# (group pointer, session uid, number of interface items) -> {name: (identifier, is_menu)}.
-# Every update reads some 30 inputs by name, and a walk over the group's interface through
-# RNA costs about 10 us each (about 0.3 ms an update). Growing or shrinking the interface
-# changes the key; an identifier never changes while its socket exists, and a lookup that
-# misses (a renamed socket) walks the interface again.
-_input_tables = {}
+# state.input_tables: (group pointer, session uid, number of interface items) -> {name:
+# (identifier, is_menu)}. Every update reads some 30 inputs by name, and a walk over the
+# group's interface through RNA costs about 10 us each (about 0.3 ms an update). Growing or
+# shrinking the interface changes the key; an identifier never changes while its socket
+# exists, and a lookup that misses (a renamed socket) walks the interface again.
 
 
 def _interface_size(group):
@@ -94,12 +95,12 @@ def _input_entry(group, name):
     if group is None:
         raise KeyError(f"no node group: no input named {name!r}")
     key = (group.as_pointer(), getattr(group, "session_uid", 0), _interface_size(group))
-    table = _input_tables.get(key)
+    table = state.input_tables.get(key)
     if table is None or name not in table:
         table = {s.name: (s.identifier, is_menu_socket(s)) for s in group_sockets(group, 'INPUT')}
-        if len(_input_tables) > 64:
-            _input_tables.clear()
-        _input_tables[key] = table
+        if len(state.input_tables) > 64:
+            state.input_tables.clear()
+        state.input_tables[key] = table
         if name not in table:
             raise KeyError(f"node group {group.name!r} has no input named {name!r}")
     return table[name]
@@ -380,7 +381,7 @@ def write_custom_normals(mesh, normals, domain='CORNER'):
 
 def remove_custom_normals(mesh):
     """4.5+: drops the custom_normal attribute, so that Blender shades from the geometry
-    (before 4.5 a result with custom normals is rebuilt instead: modifier_update)."""
+    (before 4.5 a result with custom normals is rebuilt instead: write.write_result)."""
     if HAS_FREE_NORMAL_ATTRIBUTE:
         attr = mesh.attributes.get("custom_normal")
         if attr is not None:

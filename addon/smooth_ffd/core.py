@@ -7,16 +7,20 @@ Where it comes from, without any sys.path edit:
 - legacy add-on zip (Blender 3.4-4.1): the package vendored as the sub-package
   `smooth_ffd._vendor.smoothffd` (scripts/package.sh);
 - otherwise an installed `smoothffd` (pip), e.g. a development setup.
+
+The add-on asks the core for its limits and names (MAX_LEVEL, DEVICES) and its checks
+(a singular matrix) instead of restating them: parse_level, parse_backend, lattice_to_object.
 """
 import sys
 
-_module = None
+import numpy as np
+
+from . import inputs, state
 
 
 def smoothffd():
     """The imported core; raises ImportError with a message saying what to do."""
-    global _module
-    if _module is None:
+    if state.core_module[0] is None:
         errors = []
         try:
             from ._vendor import smoothffd as m
@@ -31,8 +35,37 @@ def smoothffd():
                     f"Smooth FFD package made for this Blender (Python "
                     f"{sys.version_info[0]}.{sys.version_info[1]}, Linux x86-64): see "
                     "docs/packaging.md") from e2
-        _module = m
-    return _module
+        state.core_module[0] = m
+    return state.core_module[0]
+
+
+def parse_backend(text):
+    """The Backend setting (text on 3.4-4.0, a menu item's name from 4.1) -> one of the core's
+    DEVICES ('auto', the first, when empty)."""
+    names = smoothffd().DEVICES
+    b = str(text or names[0]).strip().lower()
+    if b not in names:
+        raise inputs.SmoothFFDError(f"backend must be one of {', '.join(names)}, not {text!r}")
+    return b
+
+
+def parse_level(value, what):
+    """A level setting, 1 to the core's MAX_LEVEL."""
+    top = smoothffd().MAX_LEVEL
+    level = int(value)
+    if not 1 <= level <= top:
+        raise inputs.SmoothFFDError(f"{what} must be between 1 and {top}, not {level}")
+    return level
+
+
+def lattice_to_object(object_matrix, lattice_matrix):
+    """M^-1 L: lattice-local coordinates -> deformed object's local coordinates. A singular
+    object matrix (the core's check, smoothffd.lattice.is_singular) is an error."""
+    m = np.asarray(object_matrix, dtype=np.float64)
+    lat = np.asarray(lattice_matrix, dtype=np.float64)
+    if smoothffd().lattice.is_singular(m):
+        raise inputs.SmoothFFDError("the object's transform is singular (zero scale)")
+    return np.linalg.solve(m, lat)
 
 
 def make_deformer(source, lattice, level, backend):

@@ -1,21 +1,17 @@
-"""App handlers that keep every Smooth FFD result up to date.
+"""App handlers and timers that keep every Smooth FFD result up to date, each through the
+one update path (pipeline.update_modifier).
 
 Writing the result mesh tags the depsgraph, which fires depsgraph_update_post again: a guard
-stops that re-entry, and update_modifier skips work when its inputs have not changed.
+(state.flags.busy, state.muted) stops that re-entry, and update_modifier skips work when its
+inputs have not changed.
 """
-import contextlib
 import threading
 
 import bpy
 from bpy.app.handlers import persistent
 
-from . import bake, compat, linked, modifier_update, nodegroup, stack_input
-
-_busy = False
-_rendering = False
-# Lattices seen with a user besides Smooth FFD inputs this session (as_pointer): one that
-# later has none was deleted (release_deleted_lattices).
-_wanted_lattices = set()
+from . import compat, frames, linked, live, nodegroup, objects, pipeline, stack_input, state, \
+    statusline
 
 
 def smooth_ffd_modifiers(scene=None):
@@ -48,14 +44,13 @@ def update_all(scene=None, depsgraph=None, render=None, changed_meshes=None, for
     viewport, objects the view layer does not show (hidden with H, in an excluded or hidden
     collection) unless something shown uses them (_needed): they are brought up to date by
     the depsgraph update that shows them again."""
-    global _busy
-    if _busy:
+    if state.flags.busy:
         return 0
-    _busy = True
+    state.flags.busy = True
     try:
         if scene is None:
             scene = bpy.context.scene
-        render = _rendering if render is None else render
+        render = state.flags.rendering if render is None else render
         if not _may_write(scene):
             return 0
         if depsgraph is None:
@@ -63,49 +58,38 @@ def update_all(scene=None, depsgraph=None, render=None, changed_meshes=None, for
         release_deleted_lattices()
         linked.report_scene(scene)
         stack_input.begin_pass()
-        frame = modifier_update.scene_frame(scene)
+        frame = frames.scene_frame(scene)
         view_layer = getattr(depsgraph, "view_layer", None) or bpy.context.view_layer
+        p = state.Pass(depsgraph, scene=scene, render=render, force=force, changed=changed,
+                       changed_meshes=changed_meshes, frame_change=frame_change,
+                       can_evaluate=not in_handler)
         count = 0
         hidden = []
         for obj, mod in smooth_ffd_modifiers(scene):
             if not (mod.show_render if render else mod.show_viewport):
                 continue
-            if in_bake(mod, frame):
-                _baked_status(obj, mod, scene)
+            if frames.in_bake(mod, frame):
+                statusline.set_baked(obj, mod, scene)
                 continue
             if not render and not force and not _shown(obj, view_layer):
                 hidden.append((obj, mod))
                 continue
             if defer_stack and stack_input.Stack(obj, mod, render).reads_stack:
-                modifier_update.set_frames(mod, "Result", nodegroup.NEVER)
+                frames.set_frames(mod, "Result", state.NEVER)
                 obj.update_tag()
                 continue
-            # The object itself is re-evaluated whenever its lattice moves; only an update
-            # of its mesh data means the source changed.
-            mesh_changed = changed_meshes is None or obj.data in changed_meshes
-            count += modifier_update.update_modifier(obj, mod, depsgraph, render=render,
-                                                     mesh_changed=mesh_changed, force=force,
-                                                     scene=scene, changed=changed,
-                                                     frame_change=frame_change,
-                                                     can_evaluate=not in_handler)
+            count += pipeline.update_modifier(obj, mod, p)
         if hidden:
             needed = _needed([obj for obj, _ in hidden])
             for obj, mod in hidden:
                 if obj in needed:
-                    mesh_changed = changed_meshes is None or obj.data in changed_meshes
-                    count += modifier_update.update_modifier(
-                        obj, mod, depsgraph, render=render, mesh_changed=mesh_changed,
-                        scene=scene, changed=changed, frame_change=frame_change,
-                        can_evaluate=not in_handler)
+                    count += pipeline.update_modifier(obj, mod, p)
                 else:
-                    skipped_hidden[0] += 1
+                    state.skipped_hidden[0] += 1
         return count
     finally:
-        _busy = False
-
-
-# How many viewport updates skipped a hidden object (tests read it).
-skipped_hidden = [0]
+        state.flags.busy = False
+        start_timers()
 
 
 def _shown(obj, view_layer):
@@ -144,18 +128,6 @@ def _instanced_collections():
             out.add(c)
             stack.extend(c.children)
     return out
-
-
-def in_bake(mod, frame):
-    lo, hi = modifier_update.get_frames(mod, "Bake")
-    return lo <= frame < hi
-
-
-def _baked_status(obj, mod, scene):
-    text = bake.status_text(mod)
-    notes = modifier_update.lock_notes(scene)
-    text += "".join(f" \u2014 {n}" for n in notes)
-    modifier_update.set_status(obj, mod, text, report=False)
 
 
 def _may_write(scene):
@@ -201,40 +173,56 @@ def release_deleted_lattices():
         # user of it: more users than these inputs means it is still wanted (cheaper than
         # asking for its collections on every update).
         if lat.users > len(users):
-            _wanted_lattices.add(key)
+            state.wanted_lattices.add(key)
             continue
-        if key not in _wanted_lattices:
+        if key not in state.wanted_lattices:
             continue
-        _wanted_lattices.discard(key)
+        state.wanted_lattices.discard(key)
         for obj, mod in users:
             compat.set_modifier_input(mod, "Lattice", None)
-            ro = modifier_update.result_object(obj, mod, create=False)
+            ro = objects.result_object(obj, mod, create=False)
             if ro is not None:   # the error message says why, also after a reload
-                st = modifier_update._state(ro)
+                st = state.of_result(ro, create=True)
                 st.lattice_gone = lat.name
                 st.last_key = st.status_base = None
-            modifier_update.set_status(
+            statusline.set_status(
                 obj, mod, f"Error: no lattice object set (the lattice object {lat.name!r} was "
-                          f"deleted)", modifier_update.nodegroup.NEVER, report=False)
+                          f"deleted)", state.NEVER, report=False)
         bpy.data.objects.remove(lat)
 
 
-@contextlib.contextmanager
-def muted():
-    """Handlers do nothing inside: our own depsgraph updates must neither recurse nor put
-    the viewport level back over a render-level result (Apply)."""
-    global _busy
-    was = _busy
-    _busy = True
-    try:
-        yield
-    finally:
-        _busy = was
+# --- timers ---------------------------------------------------------------------------------
+
+def settle():
+    """The timer after live editing (live.py): once nothing changed for state.SETTLE seconds,
+    updates every modifier, which computes the exact normals of the results computed without
+    them (their key differs); else runs again when that time has come."""
+    wait = live.wait()
+    if wait > 0:
+        return wait
+    update_all(bpy.context.scene)
+    return None
 
 
-def guarded(fn, *args, **kwargs):
-    with muted():
-        return fn(*args, **kwargs)
+def _deferred_update():
+    """The timer of a stack reading deferred to the next evaluation (stack_input.defer)."""
+    update_all(bpy.context.scene)
+    return None
+
+
+def start_timers():
+    """Registers the timers the last round of updates asked for (state.pending_timers): in a
+    window only (background mode runs no timers), a deferred stack reading only from the
+    main thread."""
+    wanted = set(state.pending_timers)
+    state.pending_timers.clear()
+    if bpy.app.background:
+        return
+    if "settle" in wanted and not bpy.app.timers.is_registered(settle):
+        bpy.app.timers.register(settle, first_interval=state.SETTLE)
+    if "stack" in wanted and threading.current_thread() is threading.main_thread() \
+            and not bpy.app.timers.is_registered(_deferred_update):
+        bpy.app.timers.register(_deferred_update, first_interval=0.0)
 
 
 def _changed_ids(depsgraph):
@@ -252,26 +240,26 @@ def _changed_ids(depsgraph):
 @persistent
 def on_depsgraph_update_pre(scene, depsgraph=None):
     """Writes the result before Blender evaluates an edit, where the original data give the
-    evaluated inputs (modifier_update._early_inputs): Blender then evaluates the modifier
-    once, with the new result, instead of once with the old one and again after
-    on_depsgraph_update."""
-    global _busy
-    if _busy or _rendering:
+    evaluated inputs (gather.early_inputs): Blender then evaluates the modifier once, with
+    the new result, instead of once with the old one and again after on_depsgraph_update."""
+    if state.flags.busy or state.flags.rendering:
         return
-    _busy = True
+    state.flags.busy = True
     try:
-        frame = modifier_update.scene_frame(scene)
+        frame = frames.scene_frame(scene)
         view_layer = bpy.context.view_layer
+        p = state.Pass(None, scene=scene, early=True)
         for obj, mod in smooth_ffd_modifiers(scene):
-            if mod.show_viewport and not in_bake(mod, frame) and _shown(obj, view_layer):
-                modifier_update.update_modifier(obj, mod, None, early=True, scene=scene)
+            if mod.show_viewport and not frames.in_bake(mod, frame) and _shown(obj, view_layer):
+                pipeline.update_modifier(obj, mod, p)
     finally:
-        _busy = False
+        state.flags.busy = False
+        start_timers()
 
 
 @persistent
 def on_depsgraph_update(scene, depsgraph=None):
-    if _busy or depsgraph is None:
+    if state.flags.busy or depsgraph is None:
         return
     changed = _changed_ids(depsgraph)
     update_all(scene, depsgraph, changed_meshes=changed[0], changed=changed, in_handler=True)
@@ -279,16 +267,14 @@ def on_depsgraph_update(scene, depsgraph=None):
 
 @persistent
 def on_frame_change(scene, depsgraph=None):
-    if _busy:
+    if state.flags.busy:
         return
     update_all(scene, depsgraph, frame_change=True, in_handler=True)
 
 
 @persistent
 def on_load(*_args):
-    modifier_update.forget()   # in-memory plans belong to the previous file
-    linked.forget()
-    _wanted_lattices.clear()
+    state.forget_session()   # in-memory plans and reports belong to the previous file
     for _obj, mod in smooth_ffd_modifiers():
         nodegroup.migrate(mod)   # older layouts -> this Blender's (menu, frame ranges)
         # A lattice saved in no collection was kept only by Smooth FFD inputs (older add-ons
@@ -298,7 +284,7 @@ def on_load(*_args):
         except KeyError:
             continue
         if lat is not None and not lat.users_collection:
-            _wanted_lattices.add(lat.as_pointer())
+            state.wanted_lattices.add(lat.as_pointer())
     scene = bpy.context.scene
     if scene is not None:
         linked.report_scene(scene, force=True)
@@ -306,24 +292,21 @@ def on_load(*_args):
         update_all(scene)
 
 
-_saved_status = {}
-
-
 @persistent
 def on_save_pre(*_args):
     """The saved status of a result bound to one frame says what Blender without the add-on
     shows on the others (the group's choice, nodegroup); on_save_post puts the session's
     status back, so the note is in the file only."""
-    _saved_status.clear()
+    state.saved_status.clear()
     for obj, mod in smooth_ffd_modifiers():
         try:
-            lo, hi = modifier_update.get_frames(mod, "Result")
+            lo, hi = frames.get_frames(mod, "Result")
             text = compat.get_modifier_input(mod, "Status")
         except KeyError:
             continue
-        if (lo, hi) in (nodegroup.ALWAYS, nodegroup.NEVER) or not text.startswith("OK"):
+        if (lo, hi) in (state.ALWAYS, state.NEVER) or not text.startswith("OK"):
             continue
-        _saved_status[(obj.name_full, mod.name)] = text
+        state.saved_status[(obj.name_full, mod.name)] = text
         compat.set_modifier_input(mod, "Status", f"{text} \u2014 {saved_note(lo, hi)}")
 
 
@@ -335,21 +318,20 @@ def saved_note(lo, hi):
 @persistent
 def on_save_post(*_args):
     for obj, mod in smooth_ffd_modifiers():
-        text = _saved_status.get((obj.name_full, mod.name))
+        text = state.saved_status.get((obj.name_full, mod.name))
         if text is not None:
             compat.set_modifier_input(mod, "Status", text)
-    _saved_status.clear()
+    state.saved_status.clear()
 
 
 @persistent
 def on_undo_redo(scene, *_args):
-    modifier_update.invalidate_sources()
+    state.invalidate_sources()
 
 
 @persistent
 def on_render_pre(scene, *_args):
-    global _rendering
-    _rendering = True
+    state.flags.rendering = True
     # Final renders use the render level and exact normals; the frame is already set here.
     # Modifiers reading the stack's geometry wait for the render depsgraph (frame_change_post).
     update_all(scene, render=True, defer_stack=True)
@@ -358,21 +340,19 @@ def on_render_pre(scene, *_args):
 @persistent
 def on_render_init(scene, *_args):
     # From here until the job ends, frame changes (-a) also compute at the render level.
-    global _rendering
-    _rendering = True
+    state.flags.rendering = True
 
 
 @persistent
 def on_render_done(scene, *_args):
-    global _rendering
-    _rendering = False
+    state.flags.rendering = False
     # Back to the viewport level for the interactive session; modifiers reading the stack's
     # geometry read the viewport's on its next evaluation (their result is the render's).
     update_all(scene, defer_stack=True)
 
 
 def is_rendering():
-    return _rendering
+    return state.flags.rendering
 
 
 _HANDLERS = (
@@ -405,6 +385,6 @@ def unregister():
             lst.remove(fn)
     # Timers of this module's updates (live editing's settle, a deferred stack reading): a
     # disabled add-on runs none.
-    for fn in (modifier_update.settle, stack_input._deferred_update):
+    for fn in (settle, _deferred_update):
         if bpy.app.timers.is_registered(fn):
             bpy.app.timers.unregister(fn)

@@ -1,7 +1,7 @@
 """Reads a Blender lattice object into the core's BlenderLattice (docs/algorithm.md, "Blender's Lattice modifier, exactly")."""
 import numpy as np
 
-from . import inputs
+from . import inputs, state
 
 
 def read_lattice(lattice_obj, depsgraph):
@@ -24,8 +24,8 @@ def read_lattice(lattice_obj, depsgraph):
     pts = np.empty(count * 3, dtype=np.float32)
     ev.points.foreach_get("co_deform", pts)
     rest = _rest_points(data, shape)
-    interp = inputs.interpolation_names((data.interpolation_type_u, data.interpolation_type_v,
-                                        data.interpolation_type_w))
+    # Blender's names ('KEY_BSPLINE', ...), which BlenderLattice takes as they are.
+    interp = (data.interpolation_type_u, data.interpolation_type_v, data.interpolation_type_w)
     weights = lattice_weights(lattice_obj, count)
     key = inputs.digest(rest, pts, interp, shape, weights)
     grid = None if weights is None else inputs.lattice_weight_grid(weights, shape)
@@ -80,9 +80,6 @@ def _edit_member(group, count):
     return False
 
 
-_rest_cache = {}   # lattice name -> (shape, rest): edit mode hides the rest positions
-
-
 def _rest_points(data, shape):
     """LatticePoint.co, the rest positions (never derived from the ranges: old or resized
     lattices differ: docs/algorithm.md, "Blender's Lattice modifier, exactly"). In edit mode co is garbage (the edit lattice has
@@ -91,9 +88,9 @@ def _rest_points(data, shape):
     if not data.is_editmode:
         rest = np.empty(count * 3, dtype=np.float32)
         data.points.foreach_get("co", rest)
-        _rest_cache[data.name_full] = (shape, rest)
+        state.lattice_rest[data.name_full] = (shape, rest)
         return rest
-    cached = _rest_cache.get(data.name_full)
+    cached = state.lattice_rest.get(data.name_full)
     if cached is not None and cached[0] == shape:
         return cached[1]
     axes = [np.linspace(-0.5, 0.5, n) if n > 1 else np.zeros(1) for n in shape]

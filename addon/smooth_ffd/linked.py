@@ -17,7 +17,7 @@ A library override (Object > Library Override > Make, ID.override_hierarchy_crea
 data: its modifier's inputs are overridable properties, recorded in the shot file. Its
 Result Object input still points at the library's result (linked, or on 3.4 an override
 whose mesh is linked), which the add-on must not write, so the override gets a local result
-object of its own (modifier_update.result_object) that the override's input points at; the
+object of its own (objects.result_object) that the override's input points at; the
 status, frame ranges and bake are written to the override like any setting. On 3.4 a float
 input written from Python lost its "overridable" flag (the ID property is replaced by a
 double), so a library saved by the add-on had Result From/To and Strength not overridable:
@@ -25,13 +25,7 @@ compat.set_modifier_input keeps the flag, and overrides get it back here.
 """
 import bpy
 
-from . import compat, nodegroup
-
-# (object name_full, modifier name) -> the message printed for a linked modifier (once).
-reported = {}
-_scanned = [None]        # what report_scene last scanned (a cheap signature)
-_overridable_done = set()
-
+from . import compat, frames, nodegroup, state
 
 def is_linked(id_data):
     """Data from a library file (not an override: those are local)."""
@@ -54,26 +48,19 @@ def library_path(id_data):
     return lib.filepath if lib is not None else ""
 
 
-def forget():
-    reported.clear()
-    _scanned[0] = None
-    _overridable_done.clear()
-
-
 # --- linked modifiers: read, never write -------------------------------------------------
 
 def describe(obj, mod):
     """What a linked modifier shows, and what to do for a live result."""
-    from . import modifier_update   # imports this module
     try:
-        bake_lo, bake_hi = modifier_update.get_frames(mod, "Bake")
-        lo, hi = modifier_update.get_frames(mod, "Result")
+        bake_lo, bake_hi = frames.get_frames(mod, "Bake")
+        lo, hi = frames.get_frames(mod, "Result")
     except KeyError:   # no node group, or not ours any more
-        bake_lo, bake_hi = lo, hi = nodegroup.NEVER
+        bake_lo, bake_hi = lo, hi = state.NEVER
     parts = []
     if bake_lo < bake_hi:
         parts.append(f"the library's bake on frames {bake_lo + 0.5:g}-{bake_hi - 0.5:g}")
-    if (lo, hi) == nodegroup.ALWAYS:
+    if (lo, hi) == state.ALWAYS:
         parts.append(f"the library's saved result on every {'other ' if parts else ''}frame "
                      f"(nothing it depends on is animated)")
     else:
@@ -92,9 +79,9 @@ def describe(obj, mod):
 def report(obj, mod):
     """Prints describe() once per linked modifier (this session)."""
     key = (obj.name_full, mod.name)
-    if key in reported:
+    if key in state.linked_reported:
         return False
-    reported[key] = text = describe(obj, mod)
+    state.linked_reported[key] = text = describe(obj, mod)
     print(text)
     return True
 
@@ -124,9 +111,9 @@ def report_scene(scene, force=False):
     data = bpy.data
     sig = (scene.name_full, len(data.objects), len(data.collections), len(data.libraries),
            len(scene.objects))
-    if not force and sig == _scanned[0]:
+    if not force and sig == state.linked_scanned[0]:
         return 0
-    _scanned[0] = sig
+    state.linked_scanned[0] = sig
     if not len(data.libraries):
         return 0
     return sum(report(obj, mod) for obj, mod in linked_modifiers(scene))
@@ -159,9 +146,9 @@ def prepare_override(obj, mod):
     if not is_override(obj) or compat.HAS_MODIFIER_PROPERTIES:
         return
     key = (obj.name_full, mod.name)
-    if key in _overridable_done:
+    if key in state.overridable_done:
         return
-    _overridable_done.add(key)
+    state.overridable_done.add(key)
     for name, *_ in nodegroup.INPUTS:
         try:
             compat.ensure_overridable(mod, name)

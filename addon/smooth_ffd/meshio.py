@@ -186,7 +186,7 @@ def write_normals(mesh, res, scratch):
     3.4-4.4 normals_split_custom_set_from_vertices; else one a corner, gathered through
     render_triangles (one row per corner, written into a buffer kept in scratch).
 
-    Corner layout (where normals split, modifier_update._layout): a normal per corner from the
+    Corner layout (where normals split, plans.layout): a normal per corner from the
     core, written as it is; on 4.5+, where nothing splits after all (LAYOUT forced), one
     corner's normal a vertex (point domain). scratch["splits"]: whether the plan has more
     render vertices than output vertices."""

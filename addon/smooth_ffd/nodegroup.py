@@ -37,11 +37,11 @@ Index by index, Set Position); else (no object, or emptied) the result is shown 
 Blender before 3.6 (no implicit sharing: every change to the result mesh copies all of it
 again, its topology, UV maps and attributes, in the depsgraph) the add-on sends
 positions-only updates (live editing without exact normals) through it and leaves the result
-mesh's topology untouched (modifier_update._write_result); every other write empties it.
+mesh's topology untouched (write.write_result); every other write empties it.
 """
 import bpy
 
-from . import compat
+from . import compat, core, state
 
 GROUP_NAME = "Smooth FFD"
 GROUP_TAG = "smooth_ffd_group"   # custom property marking our group (value: layout version)
@@ -58,19 +58,17 @@ COPY_LAYOUTS = (TEXT_COPY_LAYOUT, MENU_COPY_LAYOUT) + POINTS_LAYOUTS
 STACK_LAYOUTS = (TEXT_STACK_LAYOUT, MENU_STACK_LAYOUT) + COPY_LAYOUTS
 FRAMES_LAYOUTS = (TEXT_FRAMES_LAYOUT, MENU_FRAMES_LAYOUT) + STACK_LAYOUTS
 LAYOUTS = (TEXT_LAYOUT, MENU_LAYOUT) + FRAMES_LAYOUTS
-BACKEND_ITEMS = ("Auto", "CPU", "CUDA")   # the menu's items (inputs.parse_backend reads any case)
-
-# Frame ranges are half-open [from, to); an empty one (from > to) selects nothing, an
-# "always" one covers every frame Blender allows (MAXFRAME is 1048574).
-NEVER = (1.0, 0.0)
-ALWAYS = (-1.0e7, 1.0e7)
+# A socket maximum the core decides (its MAX_LEVEL), asked when a group is built.
+CORE_MAX_LEVEL = "the core's MAX_LEVEL"
 
 # (name, socket type, default, min, max, description); order = panel order.
 SETTINGS = (
     ("Lattice", 'NodeSocketObject', None, None, None, "Lattice object that deforms the mesh"),
-    ("Viewport Level", 'NodeSocketInt', 3, 1, 64, "Sub-triangles per patch edge in the viewport"),
-    ("Render Level", 'NodeSocketInt', 10, 1, 64, "Sub-triangles per patch edge for render and Apply"),
-    ("Backend", 'NodeSocketString', "auto", None, None, "auto, cpu or cuda"),   # a menu on 4.1+
+    ("Viewport Level", 'NodeSocketInt', 3, 1, CORE_MAX_LEVEL,
+     "Sub-triangles per patch edge in the viewport"),
+    ("Render Level", 'NodeSocketInt', 10, 1, CORE_MAX_LEVEL,
+     "Sub-triangles per patch edge for render and Apply"),
+    ("Backend", 'NodeSocketString', "auto", None, None, None),   # a menu on 4.1+ (_backend_text)
     ("Strength", 'NodeSocketFloat', 1.0, -1e6, 1e6, "Deformation strength (as the Lattice modifier)"),
     ("Vertex Group", 'NodeSocketString', "", None, None, "Vertex group weighting the deformation"),
     ("Invert Vertex Group", 'NodeSocketBool', False, None, None, "Use 1 - weight"),
@@ -81,13 +79,15 @@ SETTINGS = (
 # Internal inputs written by the add-on, hidden from the panel where Blender allows it (4.2+).
 FRAMES_INTERNAL_INPUTS = (
     ("Result Object", 'NodeSocketObject', None, None, None, "Internal: the hidden result mesh"),
-    ("Result From", 'NodeSocketFloat', NEVER[0], None, None,
+    ("Result From", 'NodeSocketFloat', state.NEVER[0], None, None,
      "Internal: first frame the result belongs to"),
-    ("Result To", 'NodeSocketFloat', NEVER[1], None, None,
+    ("Result To", 'NodeSocketFloat', state.NEVER[1], None, None,
      "Internal: end (exclusive) of the frames the result belongs to"),
     ("Bake Object", 'NodeSocketObject', None, None, None, "Internal: the baked frames"),
-    ("Bake From", 'NodeSocketFloat', NEVER[0], None, None, "Internal: first baked frame - 1/2"),
-    ("Bake To", 'NodeSocketFloat', NEVER[1], None, None, "Internal: last baked frame + 1/2"),
+    ("Bake From", 'NodeSocketFloat', state.NEVER[0], None, None,
+     "Internal: first baked frame - 1/2"),
+    ("Bake To", 'NodeSocketFloat', state.NEVER[1], None, None,
+     "Internal: last baked frame + 1/2"),
 )
 STACK_INTERNAL_INPUTS = FRAMES_INTERNAL_INPUTS + (
     ("Stack Object", 'NodeSocketObject', None, None, None,
@@ -155,14 +155,17 @@ def _build_group(group_layout=GROUP_LAYOUT):
         STACK_INTERNAL_INPUTS if stack else FRAMES_INTERNAL_INPUTS if frames else \
         OLD_INTERNAL_INPUTS
     for name, stype, default, lo, hi, desc in SETTINGS + internal:
-        if name == "Backend" and menu:
-            stype, default, desc = 'NodeSocketMenu', None, "Auto (CUDA when usable), CPU or CUDA"
+        if name == "Backend":
+            if menu:
+                stype, default = 'NodeSocketMenu', None
+            desc = _backend_text(menu)
         sock = compat.new_group_socket(group, 'INPUT', stype, name)
         sock.description = desc
         if default is not None:
             sock.default_value = default
         if lo is not None:
-            sock.min_value, sock.max_value = lo, hi
+            sock.min_value = lo
+            sock.max_value = core.smoothffd().MAX_LEVEL if hi == CORE_MAX_LEVEL else hi
         if name in {n for n, *_ in internal}:
             compat.hide_in_modifier(sock)
     compat.new_group_socket(group, 'OUTPUT', 'NodeSocketGeometry', "Geometry")
@@ -406,6 +409,20 @@ def _switch_out(switch):
     return switch.outputs[_first_enabled(switch.outputs, 'GEOMETRY')]
 
 
+def backend_items():
+    """The Backend menu's items (4.1+): the core's DEVICES, 'auto' as a word and the devices
+    as the acronyms they are (core.parse_backend reads any case)."""
+    names = core.smoothffd().DEVICES
+    return tuple(n.title() if i == 0 else n.upper() for i, n in enumerate(names))
+
+
+def _backend_text(menu):
+    """The Backend input's description: its items (menu) or the names it takes (text)."""
+    items = backend_items() if menu else core.smoothffd().DEVICES
+    first = f"{items[0]} (CUDA when usable)" if menu else items[0]
+    return f"{', '.join((first,) + tuple(items[1:-1]))} or {items[-1]}"
+
+
 def _backend_menu(group, gin):
     """4.1+: the Backend menu's items come from a Menu Switch node fed by the input (Blender
     infers a menu socket's items from the Menu Switch it is linked to). The switch's output
@@ -415,16 +432,17 @@ def _backend_menu(group, gin):
     node.location = (-150, 150)
     node.data_type = 'INT'
     items = node.enum_items if hasattr(node, "enum_items") else node.enum_definition.enum_items
-    while len(items) > len(BACKEND_ITEMS):
+    names = backend_items()
+    while len(items) > len(names):
         items.remove(items[len(items) - 1])
-    for i, name in enumerate(BACKEND_ITEMS):
+    for i, name in enumerate(names):
         if i < len(items):
             items[i].name = name
         else:
             items.new(name)
     group.links.new(_out(gin, "Backend"), node.inputs[0])
     # Only once linked does the socket know the items (else: "enum not found").
-    compat.input_socket(group, "Backend").default_value = BACKEND_ITEMS[0]
+    compat.input_socket(group, "Backend").default_value = names[0]
 
 
 def migrate(mod):
@@ -453,10 +471,11 @@ def migrate(mod):
         if value is None:           # an empty object input: already empty
             continue
         if name == "Backend":
-            value = str(value).strip().lower() or "auto"
-            if value not in ("auto", "cpu", "cuda"):   # it was an error; a menu cannot hold it
-                print(f"Smooth FFD [{mod.name}]: backend {value!r} is not a menu item: auto")
-                value = "auto"
+            names = core.smoothffd().DEVICES
+            value = str(value).strip().lower() or names[0]
+            if value not in names:   # it was an error; a menu cannot hold it
+                print(f"Smooth FFD [{mod.name}]: backend {value!r} is not a menu item: {names[0]}")
+                value = names[0]
         compat.set_modifier_input(mod, name, value)
     # An old group's result had no frame range: shown nowhere until the handlers write one
     # (load_post recomputes every modifier).

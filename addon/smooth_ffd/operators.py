@@ -1,7 +1,7 @@
 """Operators and menu entries: Add / Apply / Remove / Update Smooth FFD, Bake / Clear Bake."""
 import bpy
 
-from . import api
+from . import api, core, state
 
 
 def _lattice_candidate(context, obj):
@@ -17,8 +17,7 @@ class OBJECT_OT_smooth_ffd_add(bpy.types.Operator):
     bl_label = "Smooth FFD"
     bl_options = {'REGISTER', 'UNDO'}
 
-    viewport_level: bpy.props.IntProperty(name="Viewport Level", default=3, min=1, max=64)
-    render_level: bpy.props.IntProperty(name="Render Level", default=10, min=1, max=64)
+    # viewport_level, render_level: _level_properties (1 to the core's MAX_LEVEL)
 
     @classmethod
     def poll(cls, context):
@@ -31,12 +30,12 @@ class OBJECT_OT_smooth_ffd_add(bpy.types.Operator):
             # A selected lattice becomes the modifier's lattice, like Ctrl+P > Lattice Deform.
             mod = api.add_smooth_ffd(obj, _lattice_candidate(context, obj),
                                      self.viewport_level, self.render_level)
-        except (TypeError, ValueError, RuntimeError) as e:
+        except (TypeError, ValueError, RuntimeError, ImportError) as e:
             self.report({'ERROR'}, str(e))
             return {'CANCELLED'}
         self.report({'INFO'}, f"{mod.name}: {api.status(mod)}")
-        if api.lock_message[0]:
-            self.report({'WARNING'}, api.lock_message[0])
+        if state.lock_message[0]:
+            self.report({'WARNING'}, state.lock_message[0])
         return {'FINISHED'}
 
 
@@ -199,7 +198,20 @@ def _modifier_menus():
     return [getattr(bpy.types, n) for n in names if hasattr(bpy.types, n)]
 
 
+def _level_properties():
+    """The Add operator's levels, 1 to the core's MAX_LEVEL (without a maximum when the core
+    does not import: the operator then reports that error)."""
+    try:
+        top = {"max": core.smoothffd().MAX_LEVEL}
+    except ImportError:
+        top = {}
+    props = OBJECT_OT_smooth_ffd_add.__annotations__
+    props["viewport_level"] = bpy.props.IntProperty(name="Viewport Level", default=3, min=1, **top)
+    props["render_level"] = bpy.props.IntProperty(name="Render Level", default=10, min=1, **top)
+
+
 def register():
+    _level_properties()
     for cls in CLASSES:
         bpy.utils.register_class(cls)
     bpy.types.VIEW3D_MT_object.append(_object_menu)

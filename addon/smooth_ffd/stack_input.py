@@ -12,7 +12,7 @@ evaluation reads it (source). So:
 
 - playback: a moving input (a pose, animated shape keys) differs from the Stack Object, and
   a result whose inputs change with time belongs to its frame only
-  (modifier_update.result_frames), so the first evaluation of a new frame passes the input
+  (gather.result_frames), so the first evaluation of a new frame passes the input
   through; frame_change_post reads it there and computes, and Blender's second evaluation of
   that frame (which it runs for any handler that changed data) shows the result: the
   modifiers above are evaluated twice a frame, once more than with Blender's Lattice
@@ -31,12 +31,10 @@ evaluation reads it (source). So:
   also carries its input mesh as a hidden instance, and the add-on reads that instance
   (input_copy) in the same evaluations as above: no evaluation more.
 """
-import threading
-
 import bpy
 import numpy as np
 
-from . import inputs, latticeio, nodegroup
+from . import compat, frames, inputs, latticeio, meshio, nodegroup, objects, state
 
 OWN, EVALUATED, CHAIN = "own", "evaluated", "chain"
 
@@ -56,11 +54,6 @@ STATIC_TYPES = frozenset((
 # Types whose output besides positions (UV maps, weights, normals) follows IDs they point at.
 NON_POSITIONAL_TYPES = frozenset(('UV_PROJECT', 'UV_WARP', 'VERTEX_WEIGHT_PROXIMITY',
                                   'DATA_TRANSFER', 'NORMAL_EDIT', 'NODES'))
-
-# How often the stack's geometry was read, and how often that took one more evaluation of the
-# depsgraph (force_passthrough) or waited for the next one (defer); tests read them.
-counters = {"forced": 0, "reads": 0, "deferred": 0}
-
 
 def enabled(m, render):
     return m.show_render if render else m.show_viewport
@@ -140,7 +133,6 @@ def time_dependent(obj, stack):
     in STATIC_TYPES (or a texture-driven one with a texture), an ID a modifier above points
     at that is animated, parented or constrained (an armature: also bone constraints), or a
     Smooth FFD above whose result belongs to one frame."""
-    from . import modifier_update   # it imports this module
     if latticeio.animated(obj) or latticeio.animated(obj.data):
         return True
     key = obj.data.shape_keys
@@ -150,7 +142,7 @@ def time_dependent(obj, stack):
         return True
     for m in stack.above:
         if nodegroup.is_smooth_ffd_modifier(m):
-            if modifier_update.get_frames(m, "Result") != nodegroup.ALWAYS:
+            if frames.get_frames(m, "Result") != state.ALWAYS:
                 return True
             continue
         if m.type not in STATIC_TYPES:
@@ -222,26 +214,20 @@ class Deferred(Exception):
     """The stack's geometry is read on the next evaluation (defer)."""
 
 
-# (object as_pointer, modifier name) of Smooth FFD modifiers that, in this round, wrote a
-# result or were made to pass their input through (force_passthrough): what the last
-# evaluation showed below them is not what the next one shows.
-_changed = set()
-
-
 def begin_pass():
-    """Called where one round of updates starts (handlers.update_all, api.update)."""
-    _changed.clear()
+    """Called where one round of updates starts (handlers.update_all, api.update):
+    state.stack_changed lists the modifiers that wrote or passed their input through in it."""
+    state.stack_changed.clear()
 
 
 def wrote(obj, mod):
-    _changed.add((obj.as_pointer(), mod.name))
+    state.stack_changed.add((obj.as_pointer(), mod.name))
 
 
 def mesh_fingerprint(mesh):
     """Digest of what a mesh holds besides its vertex positions, which the group's input check
     does not see: counts, faces, UV maps, material indices, sharp edges, flat faces, custom
     normals present (not the deform weights: no bulk read exists for them)."""
-    from . import compat
     parts = [len(mesh.vertices), len(mesh.edges), len(mesh.loops), len(mesh.polygons),
              compat.get_corner_verts(mesh), compat.get_material_index(mesh),
              getattr(mesh, "has_custom_normals", None)]
@@ -258,7 +244,6 @@ def mesh_fingerprint(mesh):
 def shows_result(mesh, results):
     """Whether an evaluated mesh is one of the given result meshes (then the group showed a
     result, not its input): same counts and positions."""
-    from . import compat
     for res in results:
         if res is None or len(res.vertices) != len(mesh.vertices) or \
                 len(res.polygons) != len(mesh.polygons) or len(res.vertices) == 0:
@@ -268,78 +253,19 @@ def shows_result(mesh, results):
     return False
 
 
-STACK_KEY = "smooth_ffd_stack"   # stack object -> the uid of its modifier's result object
-
-
-def stack_object(obj, mod, ro):
-    """The hidden mesh object holding the vertices of the input the result was computed from
-    (the group's Stack Object: the input check), one per modifier, never linked to a scene.
-    Only vertices: the group compares their number and positions."""
-    from . import compat, modifier_update
-    so = compat.get_modifier_input(mod, "Stack Object")
-    key = modifier_update.uid(ro)
-    if so is not None and so.type == 'MESH' and so.get(STACK_KEY) == key:
-        return so
-    name = f"{obj.name}.{mod.name}.stack"
-    so = bpy.data.objects.new(name, bpy.data.meshes.new(name))
-    so[STACK_KEY] = key
-    return so
-
-
-def record(so, positions):
-    """Writes the input's vertex positions into the stack object's mesh."""
-    from . import meshio
-    meshio.write_vertices(so.data, positions)
-
-
-def set_stack_object(obj, mod, target):
-    """Points the modifier's Stack Object input at `target` (None: no input check) when it
-    differs (a new pointer rebuilds the depsgraph's relations); lets go of an own stack
-    object no longer used."""
-    from . import compat, nodegroup as ng
-    if ng.layout(mod.node_group) not in ng.STACK_LAYOUTS:
-        return
-    old = compat.get_modifier_input(mod, "Stack Object")
-    if old == target:
-        return
-    compat.set_modifier_input(mod, "Stack Object", target)
-    obj.update_tag()
-    if old is not None and old.get(STACK_KEY) is not None and old.users == 0:
-        remove(old)
-
-
-def remove(so):
-    """Deletes a hidden object of vertices only (a stack object, a Result Points object) of
-    this file (never a library's, nor an override of one)."""
-    if so.library is not None or getattr(so, "override_library", None) is not None:
-        return
-    mesh = so.data
-    bpy.data.objects.remove(so)
-    if mesh is not None and mesh.users == 0 and mesh.library is None:
-        bpy.data.meshes.remove(mesh)
-
-
 def defer(obj, mods):
     """Inside a depsgraph handler the depsgraph must not be evaluated again (Blender 3.4-5.1
     crash there after a relations update): the modifiers' frame ranges are cleared instead, so
     that the next evaluation passes their input through, where the next handler call reads
-    it. In a window a timer runs that update at once; in background mode the next update does
-    (or smooth_ffd.update)."""
-    from . import modifier_update
+    it. In a window a timer runs that update at once (state.pending_timers: the handlers
+    register it after their round); in background mode the next update does (or
+    smooth_ffd.update)."""
     for m in mods:
-        modifier_update.set_frames(m, "Result", nodegroup.NEVER)
+        frames.set_frames(m, "Result", state.NEVER)
     obj.update_tag()
-    counters["deferred"] += 1
-    if not bpy.app.background and threading.current_thread() is threading.main_thread() \
-            and not bpy.app.timers.is_registered(_deferred_update):
-        bpy.app.timers.register(_deferred_update, first_interval=0.0)
+    state.stack_counters["deferred"] += 1
+    state.pending_timers.add("stack")
     raise Deferred()
-
-
-def _deferred_update():
-    from . import handlers
-    handlers.update_all(bpy.context.scene)
-    return None
 
 
 def force_passthrough(obj, mods, depsgraph):
@@ -347,23 +273,21 @@ def force_passthrough(obj, mods, depsgraph):
     evaluates the depsgraph again, with the handlers muted. Only outside depsgraph handlers
     (load, scripts, timers). The caller writes the ranges again (every modifier listed is
     updated after this one in the same call)."""
-    from . import handlers, modifier_update
     for m in mods:
-        modifier_update.set_frames(m, "Result", nodegroup.NEVER)
-        _changed.add((obj.as_pointer(), m.name))
+        frames.set_frames(m, "Result", state.NEVER)
+        state.stack_changed.add((obj.as_pointer(), m.name))
     obj.update_tag()
-    counters["forced"] += 1
-    with handlers.muted():
+    state.stack_counters["forced"] += 1
+    with state.muted():
         depsgraph.update()
 
 
-def source(obj, mod, settings, st, stack, depsgraph, changed, frame_change, can_evaluate,
-           groups=True):
+def source(obj, mod, settings, st, stack, p, groups=True):
     """The stack's geometry at mod's position as a meshio.SourceMesh (EVALUATED: from the
     evaluated object; CHAIN: from the Smooth FFD right above), read again only when it may
-    have changed; the modifier's Stack Object follows it. groups: read every vertex group
-    (to carry them; a Python loop over the vertices), else only the Vertex Group setting's."""
-    from . import meshio, modifier_update
+    have changed; the modifier's Stack Object follows it. p: the update's state.Pass.
+    groups: read every vertex group (to carry them; a Python loop over the vertices), else
+    only the Vertex Group setting's."""
     if nodegroup.layout(mod.node_group) != nodegroup.GROUP_LAYOUT:
         nodegroup.migrate(mod)   # a group of an older add-on: no Stack Object or Input Copy
     fp = settings_fingerprint(obj, stack)
@@ -371,10 +295,10 @@ def source(obj, mod, settings, st, stack, depsgraph, changed, frame_change, can_
     setting = (settings.vertex_group, settings.invert, groups)
     same = st.source is not None and st.source_kind == stack.kind and st.stack_fp == fp \
         and st.source_setting == setting
-    ro = modifier_update.result_object(obj, mod, create=False)
+    ro = objects.result_object(obj, mod, create=False)
     if stack.kind == CHAIN:
-        mesh, names, token, shown_by = _upper_output(obj, stack.upper, depsgraph)
-        set_stack_object(obj, mod, shown_by)
+        mesh, names, token, shown_by = _upper_output(obj, stack.upper, p.depsgraph)
+        objects.set_stack_object(obj, mod, shown_by)
         set_input_copy(obj, mod, stack)
         if same and token is not None and st.upper_key == token:
             return st.source
@@ -388,16 +312,15 @@ def source(obj, mod, settings, st, stack, depsgraph, changed, frame_change, can_
     if stack.kind == CHAIN:
         src = read(mesh)
     else:
-        src, mesh_fp = _evaluated_input(obj, mod, ro, st, stack, depsgraph, changed,
-                                        frame_change, can_evaluate, same, read)
+        src, mesh_fp = _evaluated_input(obj, mod, ro, st, stack, p, same, read)
         if src is None:
             return st.source
-    counters["reads"] += 1
+    state.stack_counters["reads"] += 1
     src.keep_normals_of(st.source)
     if stack.kind == EVALUATED and nodegroup.layout(mod.node_group) in nodegroup.STACK_LAYOUTS:
-        so = stack_object(obj, mod, ro)
-        record(so, src.positions)
-        set_stack_object(obj, mod, so)
+        so = objects.stack_object(obj, mod, ro)
+        objects.record(so, src.positions)
+        objects.set_stack_object(obj, mod, so)
     st.source, st.source_stamp, st.source_kind = src, None, stack.kind
     st.stack_fp, st.upper_key, st.source_setting = fp, token, setting
     st.mesh_fp = mesh_fp
@@ -408,26 +331,24 @@ def _upper_output(obj, upper, depsgraph):
     """(mesh, vertex group names, key, object shown) of what the Smooth FFD modifier right
     above shows on this frame: its bake, or its result (key: that result's input fingerprint;
     None: read it every time)."""
-    from . import bake, handlers, inputs as inp, modifier_update
-    frame = modifier_update.scene_frame(depsgraph=depsgraph)
-    ro = modifier_update.result_object(obj, upper, create=False)
+    frame = frames.scene_frame(depsgraph=depsgraph)
+    ro = objects.result_object(obj, upper, create=False)
     names = [g.name for g in ro.vertex_groups] if ro is not None else []
-    if handlers.in_bake(upper, frame):
-        host = bake.bake_object(upper)
+    if frames.in_bake(upper, frame):
+        host = objects.bake_object(upper)
         if host is not None:
             return host.evaluated_get(depsgraph).data, names, None, host
-    st = modifier_update.state_of(obj, upper)
+    st = state.of_result(ro)
     if st is not None and st.deferred:
         raise Deferred()       # its range and this one's are cleared: both read next time
-    lo, hi = modifier_update.get_frames(upper, "Result")
-    if st is None or st.last_key is None or not lo <= frame < hi:
-        raise inp.SmoothFFDError(f"the Smooth FFD modifier above ({upper.name!r}) has no "
+    shown = frames.get_frames(upper, "Result")
+    if st is None or st.last_key is None or not state.covers(shown, frame):
+        raise inputs.SmoothFFDError(f"the Smooth FFD modifier above ({upper.name!r}) has no "
                                  f"result for this frame, so neither has this one")
     return ro.data, names, st.last_key, ro
 
 
-def _evaluated_input(obj, mod, ro, st, stack, depsgraph, changed, frame_change,
-                     can_evaluate, same, read):
+def _evaluated_input(obj, mod, ro, st, stack, p, same, read):
     """(read(mesh), its fingerprint) for the stack's geometry here: the evaluated object where
     this modifier and every Smooth FFD below it passed their input through, or with other
     modifiers below, the input copy this one passed through (input_copy); (None, None) when
@@ -436,43 +357,43 @@ def _evaluated_input(obj, mod, ro, st, stack, depsgraph, changed, frame_change,
     changed (`triggered`: the mesh's other data, settings above), the input is read through
     one more evaluation (force_passthrough, outside handlers) or on the next one (defer).
     Turning the Input Copy on or off is such a change too."""
-    from . import handlers, inputs as inp, modifier_update
-    frame = modifier_update.scene_frame(depsgraph=depsgraph)
+    depsgraph = p.depsgraph
+    frame = frames.scene_frame(depsgraph=depsgraph)
     # Without the input copy the evaluated object must show this input, so every Smooth FFD
     # below passes it through too; the copy passes Smooth FFD modifiers below (nodegroup)
     # whether they show a result, a bake or their input.
     mods = [mod] if stack.copy else [mod] + stack.sffd_below
-    if not stack.copy and any(handlers.in_bake(m, frame) for m in stack.sffd_below):
-        raise inp.SmoothFFDError("a Smooth FFD modifier below is baked on this frame: the "
+    if not stack.copy and any(frames.in_bake(m, frame) for m in stack.sffd_below):
+        raise inputs.SmoothFFDError("a Smooth FFD modifier below is baked on this frame: the "
                                  "stack's geometry here is not shown (clear its bake)")
-    results = [r.data for r in (modifier_update.result_object(obj, m, create=False)
+    results = [r.data for r in (objects.result_object(obj, m, create=False)
                                 for m in mods) if r is not None]
     # A Smooth FFD above wrote, or passed its input through, since the evaluation: the stack
     # here is not what the next evaluation shows.
-    stale = any((obj.as_pointer(), m.name) in _changed for m in stack.above)
+    stale = any((obj.as_pointer(), m.name) in state.stack_changed for m in stack.above)
     switched = set_input_copy(obj, mod, stack)
     if not stale and not switched:
         got = _passed_through(obj, stack, depsgraph, results, read)
         if got is not None:
             return got, mesh_fingerprint(obj.data)
-        if same and not _needs_reading(obj, st, stack, changed, frame_change):
+        if same and not _needs_reading(obj, st, stack, p.changed, p.frame_change):
             return None, None
-    if not can_evaluate:
+    if not p.can_evaluate:
         defer(obj, mods)
     force_passthrough(obj, mods, depsgraph)
     for m in stack.above:
-        _changed.discard((obj.as_pointer(), m.name))
+        state.stack_changed.discard((obj.as_pointer(), m.name))
     got = _passed_through(obj, stack, depsgraph, results, read)
     if got is None:
         nodes = [m.name for m in stack.other_below if m.type == 'NODES']
         if stack.copy and nodes:
-            raise inp.SmoothFFDError(
+            raise inputs.SmoothFFDError(
                 "the stack's geometry at this modifier could not be read: its input copy (an "
                 "instance) did not reach the evaluated object, so a Geometry Nodes modifier "
                 f"below ({', '.join(map(repr, nodes))}) drops or realizes instances; move it "
                 "above Smooth FFD or apply it")
-        raise inp.SmoothFFDError("the stack's geometry at this modifier could not be read "
-                                 "(a result is still shown)")
+        raise inputs.SmoothFFDError("the stack's geometry at this modifier could not be read "
+                                    "(a result is still shown)")
     return got, mesh_fingerprint(obj.data)
 
 
@@ -489,7 +410,6 @@ def set_input_copy(obj, mod, stack):
     """Sets the modifier's Input Copy: its place in the stack while other modifiers follow it
     (viewport or render), else 0. True when that changed it (the group's output changes on
     the next evaluation)."""
-    from . import compat
     if nodegroup.layout(mod.node_group) not in nodegroup.COPY_LAYOUTS:
         return False
     want = stack.marker if stack.kind == EVALUATED and any(
@@ -508,7 +428,6 @@ def input_copy(obj, marker, depsgraph, read):
     0, translated to (0, 0, marker) in the object's space), or None when it did not (it
     showed a result). 5.0+: from the evaluated object's geometry set; before: among the
     depsgraph's instances, whose mesh lives while the iterator is on it (read there)."""
-    from . import compat
     ob_eval = obj.evaluated_get(depsgraph)
 
     def is_copy(x, y, z):

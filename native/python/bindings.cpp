@@ -274,6 +274,11 @@ void def_frames(py::class_<Ev, std::shared_ptr<Ev>>& cls, bool pinned, const cha
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "smoothffd native core: lattice bases, plan building, CPU and CUDA evaluators";
+  // The core's limits and names, which the Python package, its command line and the Blender
+  // add-on ask for instead of restating them.
+  m.attr("MAX_LEVEL") = kMaxLevel;
+  // What a Deformer runs on: "auto" (CUDA when usable, else the CPU) or an evaluator's name().
+  m.attr("DEVICES") = py::make_tuple("auto", "cpu", "cuda");
   main_thread_ident = py::module_::import("threading").attr("main_thread")().attr("ident").cast<unsigned long>();
 
   py::class_<LatticeSpec, std::shared_ptr<LatticeSpec>>(m, "LatticeSpec")
@@ -354,6 +359,9 @@ PYBIND11_MODULE(_core, m) {
       .def_property_readonly("output_vertices", [](const Plan& p) { return p.output_vertices; })
       .def_property_readonly("output_triangles", [](const Plan& p) { return p.output_triangles; })
       .def_property_readonly("render_vertex_count", [](const Plan& p) { return p.render_vertices; })
+      .def_property_readonly("splits_normals", &Plan::splits_normals,
+                             "whether any output vertex has more than one normal (render_vertex_count > "
+                             "output_vertices: sharp edges or split input normals)")
       .def_property_readonly("flat_triangles", [](const Plan& p) { return p.flat_triangles; },
                              "input triangles of flat faces (every corner normal is the face's own): "
                              "their patches follow the triangles, not the normals")

@@ -11,7 +11,7 @@ import sys
 
 __version__ = "0.1.0"
 __all__ = ["BSplineLattice", "BlenderLattice", "Mesh", "Deformer", "Result", "CompactResult", "deform",
-           "cuda_status"]
+           "cuda_status", "MAX_LEVEL", "DEVICES"]
 
 try:
     from . import _core  # noqa: F401
@@ -28,6 +28,6 @@ except ImportError as exc:  # the pure-Python submodules still work
             raise ImportError(_CORE_ERROR)
         raise AttributeError(f"module 'smoothffd' has no attribute {name!r}")
 else:
-    from .deform import CompactResult, Deformer, Result, cuda_status, deform  # noqa: F401
+    from .deform import DEVICES, MAX_LEVEL, CompactResult, Deformer, Result, cuda_status, deform  # noqa: F401
     from .lattice import BlenderLattice, BSplineLattice  # noqa: F401
     from .mesh import Mesh  # noqa: F401

@@ -408,6 +408,16 @@ class _Parser(argparse.ArgumentParser):
         self._negative_number_matcher = re.compile(r"^-\.?\d")
 
 
+def _core_devices():
+    """The core's device names (smoothffd.DEVICES) for --device; None without the core (any
+    name passes here, and deform and quality stop at the core's ImportError, which says why)."""
+    try:
+        from ._core import DEVICES
+    except ImportError:
+        return None
+    return DEVICES
+
+
 def build_parser():
     p = _Parser(
         prog="python3 -m smoothffd",
@@ -420,7 +430,7 @@ def build_parser():
     d.add_argument("--output", "-o", required=True, metavar="OUT.obj")
     d.add_argument("--level", type=int, default=10,
                    help="tessellation level L (L^2 triangles per patch; default 10)")
-    d.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
+    d.add_argument("--device", choices=_core_devices(), default="auto")
     d.add_argument("--threads", type=int, default=0, help="CPU threads (0: all cores)")
     d.add_argument("--stats", action="store_true",
                    help="print the result's stats as JSON on stdout")
@@ -466,7 +476,7 @@ def build_parser():
     qhow.add_argument("--bulge", type=float, metavar="F")
     q.add_argument("--axis", choices=("x", "y", "z"), default="z")
     q.add_argument("--levels", type=int, nargs="+", default=[1, 3, 6], metavar="L")
-    q.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
+    q.add_argument("--device", choices=_core_devices(), default="auto")
     q.add_argument("--json", action="store_true", help="print the measures as JSON")
     q.add_argument("--quiet", "-q", action="store_true", help="no progress lines")
     q.set_defaults(func=cmd_quality)

@@ -17,8 +17,9 @@ from .mesh import Mesh
 
 log = logging.getLogger("smoothffd")
 
-MAX_LEVEL = 64
-_DEVICES = ("auto", "cpu", "cuda")
+# The core's limits and names (smoothffd.MAX_LEVEL, smoothffd.DEVICES).
+MAX_LEVEL = _core.MAX_LEVEL
+DEVICES = _core.DEVICES
 
 
 @dataclass
@@ -155,8 +156,8 @@ class Deformer:
             raise TypeError("lattice: expected smoothffd.BSplineLattice or smoothffd.BlenderLattice, "
                             f"got {type(lattice).__name__}")
         self.level = positive_int(level, "level", 1, MAX_LEVEL)
-        if device not in _DEVICES:
-            raise ValueError(f"device: expected one of {_DEVICES}, got {device!r}")
+        if device not in DEVICES:
+            raise ValueError(f"device: expected one of {DEVICES}, got {device!r}")
         self.threads = positive_int(threads, "threads", 0, 4096)
         self.mesh = mesh
         big = float(np.abs(mesh.positions).max(initial=0.0))
@@ -393,6 +394,13 @@ class Deformer:
             return self._evaluator.evaluate(values, **kw)
         positions, stages = self._evaluator.evaluate_positions(values, **kw)
         return positions, None, stages
+
+    @property
+    def splits_normals(self):
+        """Whether any output vertex has more than one normal (the plan's splits_normals: sharp
+        edges or split input normals). Without splits the "compact" layout's normals are one
+        per output vertex."""
+        return self.plan.splits_normals
 
     def deform_on_device(self, lattice_or_points=None):
         """CUDA only: run the frame and keep the result in device memory (no copy back).

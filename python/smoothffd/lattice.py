@@ -12,8 +12,17 @@ import numpy as np
 
 from . import _core
 from ._validate import finite_float, float_array, int_triple
+from .lattice_json import INTERPOLATIONS
 
-_INTERPOLATIONS = ("LINEAR", "CARDINAL", "CATMULL_ROM", "BSPLINE")
+
+def is_singular(matrix):
+    """Whether the linear part (the upper-left 3x3) of a transform cannot be inverted: its
+    determinant, scaled by its largest entry (no overflow at 1e200), is at most 1e-12. The one
+    check of a singular placement: BlenderLattice's lattice_to_object, and the Blender add-on's
+    object matrix."""
+    m = np.asarray(matrix, dtype=np.float64)[:3, :3]
+    scale = np.abs(m).max()
+    return not (scale > 0 and abs(np.linalg.det(m / scale)) > 1e-12)
 
 
 class _Lattice:
@@ -225,13 +234,12 @@ class BlenderLattice(_Lattice):
             interp = tuple(str(t).upper().replace("KEY_", "") for t in interpolation)
         except TypeError:
             raise TypeError("interpolation: expected a name or three names") from None
-        if len(interp) != 3 or any(t not in _INTERPOLATIONS for t in interp):
-            raise ValueError(f"interpolation: expected three of {_INTERPOLATIONS}, got {interpolation!r}")
+        if len(interp) != 3 or any(t not in INTERPOLATIONS for t in interp):
+            raise ValueError(f"interpolation: expected three of {INTERPOLATIONS}, got {interpolation!r}")
         m = float_array(lattice_to_object, "lattice_to_object", shape=(4, 4))
         if not np.allclose(m[3], [0, 0, 0, 1]):
             raise ValueError("lattice_to_object: the last row must be (0, 0, 0, 1)")
-        scale = np.abs(m[:3, :3]).max()  # det of the scaled matrix: no overflow at 1e200
-        if not (scale > 0 and abs(np.linalg.det(m[:3, :3] / scale)) > 1e-12):
+        if is_singular(m):
             raise ValueError("lattice_to_object: the matrix is singular")
         self.strength = finite_float(strength, "strength")
         self.rest_points, self.points = rest, pts

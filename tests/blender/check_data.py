@@ -12,7 +12,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
-from sffd_testlib import smooth_ffd, carry, compat, modifier_update, meshio, stack_input  # noqa: E402,E501
+from sffd_testlib import smooth_ffd, carry, compat, meshio, stack_input  # noqa: E402,E501
 
 RNG = np.random.default_rng(7)
 
@@ -165,7 +165,7 @@ def test_vertex_groups():
     obj.modifiers.remove(disp)
     T.update()
 
-    timing_before = modifier_update.last_timing(obj, mod)
+    timing_before = T.pipeline.last_timing(obj, mod)
     smooth_ffd.apply_smooth_ffd(obj, mod)
     T.update()
     me = obj.data
@@ -250,7 +250,7 @@ def test_carry_matches_core():
     lat = T.make_lattice((3, 3, 3), "KEY_BSPLINE", scale=(1.6, 1.6, 1.6), seed=5)
     mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=3)
     T.update()
-    st = modifier_update.state_of(obj, mod)
+    st = T.objects.state_of(obj, mod)
     res = st.result
     ev = T.evaluated_mesh(obj)
     copy, render = uv_array(ev, "copy"), uv_array(ev, "UVMap")
@@ -280,7 +280,7 @@ def test_no_extras_no_cost():
         T.update()
     finally:
         carry.group_values = group_values
-    t = modifier_update.last_timing(obj, mod)
+    t = T.pipeline.last_timing(obj, mod)
     T.check("no groups, one UV map: nothing carried", not calls and t["carry_add_calls"] == 0,
             f"carry {t['carry_ms']:.2f} ms")
     ev = T.evaluated_mesh(obj)
@@ -290,7 +290,7 @@ def test_no_extras_no_cost():
 def test_extras_follow_edits():
     """Carried data follow source edits that need no new plan (weights, UV maps, groups)."""
     obj, lat, mod = sphere_scene()
-    st = modifier_update.state_of(obj, mod)
+    st = T.objects.state_of(obj, mod)
     plan = st.plan_key
     nv = len(obj.data.vertices)
     v = int(np.nonzero(groups_of(obj.data, ["full", "partial"])["partial"][0])[0][0])
@@ -320,7 +320,7 @@ def test_extras_follow_edits():
     finally:
         compat.read_corner_normals = read
     T.check("normals jitter on re-read keeps the plan", st.plan_key == plan and
-            not modifier_update.last_timing(obj, mod)["rebuilt"], str(modifier_update.last_timing(obj, mod)["rebuilt"]))
+            not T.pipeline.last_timing(obj, mod)["rebuilt"], str(T.pipeline.last_timing(obj, mod)["rebuilt"]))
     obj.vertex_groups.clear()
     obj.data.update()
     T.update()
@@ -346,7 +346,7 @@ def test_modifiers_above():
     sub = obj.modifiers.new("Subdiv", 'SUBSURF')
     T.update()
     T.check("no warning for a modifier below", "warning" not in smooth_ffd.status(mod))
-    deferred = stack_input.counters["deferred"]
+    deferred = T.state.stack_counters["deferred"]
     move_to(obj, sub.name, 0)
     T.update()
     # Moved above: the group shows the old result (its input was the object's own mesh, which
@@ -354,9 +354,9 @@ def test_modifiers_above():
     # update, so the input is read on the next one (in a window a timer runs it at once;
     # here smooth_ffd.update does).
     T.check("moved above: read on the next update",
-            stack_input.counters["deferred"] == deferred + 1, str(stack_input.counters))
+            T.state.stack_counters["deferred"] == deferred + 1, str(T.state.stack_counters))
     smooth_ffd.update(obj)
-    st = modifier_update.state_of(obj, mod)
+    st = T.objects.state_of(obj, mod)
     T.check("a modifier above: its geometry is the input, no warning",
             "warning" not in smooth_ffd.status(mod) and smooth_ffd.status(mod).startswith("OK")
             and st.source.num_vertices > len(obj.data.vertices),
@@ -370,11 +370,11 @@ def test_modifiers_above():
             compat.get_modifier_input(mod, "Input Copy") == 2,
             f"{st.source.num_vertices} input vertices: {smooth_ffd.status(mod)}")
     lat.data.points[3].co_deform.z += 0.2   # a lattice edit: the last reading holds
-    reads = stack_input.counters["reads"]
+    reads = T.state.stack_counters["reads"]
     T.update()
     T.check("lattice edit with a modifier below: no new reading, status OK",
-            stack_input.counters["reads"] == reads and smooth_ffd.status(mod).startswith("OK"),
-            f"{stack_input.counters}: {smooth_ffd.status(mod)}")
+            T.state.stack_counters["reads"] == reads and smooth_ffd.status(mod).startswith("OK"),
+            f"{T.state.stack_counters}: {smooth_ffd.status(mod)}")
     # A Geometry Nodes modifier below that keeps only the mesh drops the input copy: a clear
     # error naming it, and the object shows its input (no result).
     drop = bpy.data.node_groups.new("mesh only", 'GeometryNodeTree')

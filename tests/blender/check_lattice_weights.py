@@ -13,7 +13,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
-from sffd_testlib import smooth_ffd, compat, modifier_update, latticeio  # noqa: E402
+from sffd_testlib import smooth_ffd, compat, latticeio  # noqa: E402
 
 TOL = 1e-5
 
@@ -131,7 +131,7 @@ def test_live():
     mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=2, render_level=2)
     T.update()
     parity("live: initial", obj, lat, ref, mod)
-    plans = modifier_update.plans_built[0]
+    plans = T.state.plans_built[0]
 
     def tag():
         lat.data.update_tag()   # vertex_group.add tags nothing on 3.4
@@ -146,7 +146,7 @@ def test_live():
     tag()
     parity("live: lattice vertex group switched", obj, lat, ref, mod, changed=True)
     T.check("live: weight changes and a switched group keep the plan",
-            modifier_update.plans_built[0] == plans, f"{modifier_update.plans_built[0] - plans} plans built")
+            T.state.plans_built[0] == plans, f"{T.state.plans_built[0] - plans} plans built")
     lat.data.vertex_group = ""
     tag()
     parity("live: lattice vertex group cleared", obj, lat, ref, mod, changed=True)

@@ -40,7 +40,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
-from sffd_testlib import (smooth_ffd, compat, handlers, linked, modifier_update,  # noqa: E402
+from sffd_testlib import (smooth_ffd, compat, handlers, linked,  # noqa: E402
                           nodegroup)
 
 VIEWPORT, RENDER = 1, 2
@@ -107,7 +107,7 @@ def build_library(folder):
     sc.frame_set(SAVED_FRAME)
     smooth_ffd.update(obj, mod)
     T.check("library: the result belongs to frame 2 only",
-            modifier_update.get_frames(mod, "Result") == (1.5, 2.5), smooth_ffd.status(mod))
+            T.frames.get_frames(mod, "Result") == (1.5, 2.5), smooth_ffd.status(mod))
     paths = {n: f'["{compat.input_identifier(mod.node_group, n)}"]' for n, *_ in nodegroup.INPUTS}
     if not compat.HAS_MODIFIER_PROPERTIES:
         fixed = [n for n, p in paths.items() if not mod.is_property_overridable_library(p)]
@@ -141,7 +141,7 @@ def new_shot(path, mode):
     bpy.ops.wm.read_homefile(use_empty=True)
     sc = bpy.context.scene
     sc.frame_start, sc.frame_end = FRAMES[0], FRAMES[-1]
-    with handlers.muted():
+    with T.state.muted():
         with bpy.data.libraries.load(path, link=True) as (_src, dst):
             dst.collections = ["Character"]
         coll = dst.collections[0]
@@ -247,7 +247,7 @@ def test_linked(lib):
         sc, state = new_shot(lib["paths"]["lib"], mode)
         char = find("char", "linked")
         mod = char.modifiers[0]
-        computed = modifier_update.counters["computed"]
+        computed = T.state.counters["computed"]
         what = f"linked ({'instanced by an empty' if mode == 'instance' else 'in the scene'})"
         for f in FRAMES:
             sc.frame_set(f)
@@ -262,19 +262,19 @@ def test_linked(lib):
         smooth_ffd.update(char)          # asked directly: still nothing
         smooth_ffd.update()
         key = (char.name_full, mod.name)
-        text = linked.reported.get(key, "")
+        text = T.state.linked_reported.get(key, "")
         T.check(f"{what}: the console says once what it shows and what to do",
                 "is linked from" in text and f"saved result on frame {SAVED_FRAME}" in text
                 and "library override" in text and not linked.report(char, mod), text)
         if mode == "instance":   # a render computes nothing for it either
             camera(sc)
             render_mask(sc, 3, tempfile.mkdtemp(), "linked3")
-        T.check(f"{what}: nothing computed", modifier_update.counters["computed"] == computed,
-                f"{modifier_update.counters['computed'] - computed} computed")
+        T.check(f"{what}: nothing computed", T.state.counters["computed"] == computed,
+                f"{T.state.counters['computed'] - computed} computed")
         T.check(f"{what}: nothing linked written (modifier inputs, status, result mesh)",
                 untouched_state(char) == state)
         mine = [o.name for o in bpy.data.objects if o.library is None and
-                modifier_update.OWNER_KEY in o.keys()]
+                T.state.OWNER_KEY in o.keys()]
         T.check(f"{what}: no local result object made", not mine, str(mine))
         try:
             smooth_ffd.add_smooth_ffd(char, find("lat", "linked"))
@@ -292,7 +292,7 @@ def test_linked_bake(lib):
         T.update()
         same_mesh(f"linked, library baked: frame {f} shows the library's bake (its "
                   f"render-level result)", evaluated(char), lib["live_render"][f], lib["size"])
-    text = linked.reported.get((char.name_full, char.modifiers[0].name), "")
+    text = T.state.linked_reported.get((char.name_full, char.modifiers[0].name), "")
     T.check("linked, library baked: the console names the baked frames",
             "bake on frames 1-4" in text, text)
     T.check("linked, library baked: nothing linked written", untouched_state(char) == state)
@@ -333,7 +333,7 @@ def test_override(lib):
     lib_ro = compat.get_modifier_input(lib_char.modifiers[0], "Result Object")
     check_frames("override", sc, char, ref, lat, lib)
     mod = char.modifiers[0]
-    ro = modifier_update.result_object(char, mod, create=False)
+    ro = T.objects.result_object(char, mod, create=False)
     T.check("override: its result object is local (not the library's, not an override)",
             ro is not None and ro != lib_ro and ro.library is None and
             ro.override_library is None and ro.data.library is None,
@@ -345,7 +345,7 @@ def test_override(lib):
     record = []
 
     def probe(scene, *_):
-        r = modifier_update.result_object(char, char.modifiers[0], create=False)
+        r = T.objects.result_object(char, char.modifiers[0], create=False)
         record.append({"frame": scene.frame_current, "tris": len(r.data.polygons),
                        "pos": T.positions(r.data)[:len(lib["src"])]})
     bpy.app.handlers.render_post.append(probe)
@@ -378,7 +378,7 @@ def test_override(lib):
     # Saved on frame 4 (not the library's frame 2) and reopened.
     sc.frame_set(4)
     T.update()
-    uid = ro.get(modifier_update.UID_KEY)
+    uid = ro.get(T.state.UID_KEY)
     shot = os.path.join(tempfile.mkdtemp(), "shot.blend")
     bpy.ops.wm.save_as_mainfile(filepath=shot)
     data = without_addon(shot, (4, 2), "char")
@@ -400,9 +400,9 @@ def test_override(lib):
             for n in ("Result Object", "Result From", "Result To", "Status")}
     T.check("reopened: result object, frame range and status are override properties",
             want <= paths, str(sorted(want - paths)))
-    ro = modifier_update.result_object(char, mod, create=False)
+    ro = T.objects.result_object(char, mod, create=False)
     T.check("reopened: the same local result object", ro is not None and
-            ro.get(modifier_update.UID_KEY) == uid and ro.library is None,
+            ro.get(T.state.UID_KEY) == uid and ro.library is None,
             f"{ro and ro.name_full}")
     check_frames("override reopened", sc, char, ref, lat, lib)
 
@@ -455,8 +455,8 @@ def test_override_resync(lib):
         T.update()
         same_mesh(f"override by the operator: frame {f} is the library's live result",
                   evaluated(char), lib["live"][f], lib["size"])
-    ro = modifier_update.result_object(char, char.modifiers[0], create=False)
-    uid = ro.get(modifier_update.UID_KEY) if ro is not None else None
+    ro = T.objects.result_object(char, char.modifiers[0], create=False)
+    uid = ro.get(T.state.UID_KEY) if ro is not None else None
     shot = os.path.join(os.path.dirname(copy), "shot.blend")
     bpy.ops.wm.save_as_mainfile(filepath=shot)
     bpy.ops.wm.open_mainfile(filepath=copy)    # the library's author edits it
@@ -468,9 +468,9 @@ def test_override_resync(lib):
     char, ref, lat = (find(n, "override") for n in ("char", "char.ref", "lat"))
     T.check("library changed: the override resynced (the new object is in it)",
             any(o.name == "extra" and o.override_library is not None for o in bpy.data.objects))
-    ro = modifier_update.result_object(char, char.modifiers[0], create=False)
+    ro = T.objects.result_object(char, char.modifiers[0], create=False)
     T.check("library changed: the override keeps its local result object",
-            ro is not None and ro.get(modifier_update.UID_KEY) == uid)
+            ro is not None and ro.get(T.state.UID_KEY) == uid)
     for f in (1, 4):
         sc.frame_set(f)
         T.update()

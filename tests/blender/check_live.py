@@ -10,7 +10,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
-from sffd_testlib import smooth_ffd, compat, modifier_update, latticeio, meshio, nodegroup  # noqa: E402
+from sffd_testlib import smooth_ffd, compat, latticeio, meshio, nodegroup  # noqa: E402
 
 TOL = 1e-5
 
@@ -73,9 +73,9 @@ def test_lattice_edits():
 def _computations(fn):
     """Runs fn (an edit + update); returns how many results were computed, and where (an
     early computation that failed is a failure of its own)."""
-    before = dict(modifier_update.counters)
+    before = dict(T.state.counters)
     fn()
-    n = {k: modifier_update.counters[k] - before[k] for k in before}
+    n = {k: T.state.counters[k] - before[k] for k in before}
     errors = n.pop("early_errors")
     if errors:
         T.check("no failed early computation", False, f"{errors} failed")
@@ -96,12 +96,12 @@ def test_update_path():
             T.update()
         return fn
 
-    plan = modifier_update.state_of(obj, mod).deformer
+    plan = T.objects.state_of(obj, mod).deformer
     n = _computations(move())
     parity("lattice move: parity", obj, lat, ref, mod)
     T.check("lattice move: one computation, before the evaluation",
             n == {"computed": 1, "early": 1, "post": 0}, str(n))
-    T.check("lattice move: plan kept", modifier_update.state_of(obj, mod).deformer is plan)
+    T.check("lattice move: plan kept", T.objects.state_of(obj, mod).deformer is plan)
     n = _computations(T.update)
     T.check("no edit: no computation", n["computed"] == 0, str(n))
     # Object transform: its world matrix is its own loc/rot/scale, known before evaluation.
@@ -126,7 +126,7 @@ def test_update_path():
     n = _computations(T.update)
     parity("topology edit: parity", obj, lat, ref, mod)
     T.check("topology edit: new plan, computed once", n["computed"] == 1
-            and modifier_update.state_of(obj, mod).deformer is not plan, str(n))
+            and T.objects.state_of(obj, mod).deformer is not plan, str(n))
     for i in range(3):
         n = _computations(move(0.15 if i % 2 == 0 else -0.1, lat.data.points[10 + i]))
         parity(f"lattice move {i + 1} after topology edit: parity", obj, lat, ref, mod)
@@ -157,10 +157,10 @@ def test_update_path():
         return read_lattice(lat_obj, depsgraph)
     latticeio.read_lattice = broken
     try:
-        before = dict(modifier_update.counters)
+        before = dict(T.state.counters)
         move(0.05, lat.data.points[3])()
         T.update()
-        n = {k: modifier_update.counters[k] - before[k] for k in before}
+        n = {k: T.state.counters[k] - before[k] for k in before}
     finally:
         latticeio.read_lattice = read_lattice
     parity("failed early computation: parity", obj, lat, ref, mod)
@@ -204,8 +204,8 @@ def test_positions_only_path():
     geometry) asks the core for positions only; exact normals (Exact Normals, render and
     Apply, and 4.5+ always) ask for normals. Parity holds either way."""
     obj, lat, ref, mod = scene("cube")
-    st = modifier_update.state_of(obj, mod)
-    ro = modifier_update.result_object(obj, mod, create=False)
+    st = T.objects.state_of(obj, mod)
+    ro = T.objects.result_object(obj, mod, create=False)
 
     def move(dz=0.15):
         def fn():
@@ -254,7 +254,7 @@ def test_positions_only_path():
             n == (none if compat.CHEAP_EXACT_NORMALS else viewport), str(n))
     # Render (what the render handler and Apply call): normals, in every version.
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    n = _deform_calls(lambda: modifier_update.update_modifier(obj, mod, depsgraph, render=True, force=True))
+    n = _deform_calls(lambda: T.pipeline.update_modifier(obj, mod, T.state.Pass(depsgraph, render=True, force=True)))
     T.check("render update: normals", n == {"normals": 1, "positions_only": 0}, str(n))
     T.check("render update: custom normals written", ro.data.has_custom_normals)
     T.update()
@@ -268,8 +268,8 @@ def check_points(name, obj, mod, ro, fn, sent):
     positions-only update; nodegroup), what the points object holds, and that the object
     shows the result mesh's positions either way (bitwise: Set Position copies them)."""
     fn()
-    po = modifier_update.points_object(obj, mod, ro, create=False)
-    timing = modifier_update.last_timing(obj, mod) or {}
+    po = T.objects.points_object(obj, mod, ro, create=False)
+    timing = T.pipeline.last_timing(obj, mod) or {}
     T.check(f"{name}: {'through' if sent else 'not through'} the Result Points",
             timing.get("points") == sent, str(timing.get("points")))
     count = len(po.data.vertices) if po is not None else 0
@@ -285,9 +285,9 @@ def check_points(name, obj, mod, ro, fn, sent):
 
 def _deform_calls(fn):
     """How many of each kind of core frame fn() ran."""
-    before = dict(modifier_update.deform_calls)
+    before = dict(T.state.deform_calls)
     fn()
-    return {k: modifier_update.deform_calls[k] - before[k] for k in before}
+    return {k: T.state.deform_calls[k] - before[k] for k in before}
 
 
 def _move(lat, dz):
@@ -303,8 +303,8 @@ def live_editing_without_cheap_normals():
     forced on changes nothing. Every viewport edit is positions only, as without it; no settle
     timer is scheduled and the timer, run anyway, computes nothing."""
     obj, lat, ref, mod = scene("suzanne")
-    live, settle_after = modifier_update.LIVE, modifier_update._settle_after[0]
-    modifier_update.LIVE = True
+    live, settle_after = T.state.LIVE, T.state.settle_after[0]
+    T.state.LIVE = True
 
     try:
         fast = {"normals": 0, "positions_only": 1}
@@ -313,21 +313,21 @@ def live_editing_without_cheap_normals():
             T.check(f"live on, 3.4-4.4: edit {i + 1} in a row is positions only", n == fast, str(n))
         parity("live on, 3.4-4.4: parity", obj, lat, ref, mod)
         T.check("live on, 3.4-4.4: no settle timer scheduled",
-                modifier_update._settle_after[0] == settle_after
-                and not bpy.app.timers.is_registered(modifier_update.settle))
-        n = _deform_calls(lambda: modifier_update.settle())
+                T.state.settle_after[0] == settle_after
+                and not bpy.app.timers.is_registered(T.handlers.settle))
+        n = _deform_calls(lambda: T.handlers.settle())
         T.check("live on, 3.4-4.4: the settle timer computes nothing",
                 n == {"normals": 0, "positions_only": 0}, str(n))
-        n = _deform_calls(lambda: modifier_update.update_modifier(obj, mod, bpy.context.evaluated_depsgraph_get(),
-                                                          render=True, force=True))
+        n = _deform_calls(lambda: T.pipeline.update_modifier(
+            obj, mod, T.state.Pass(bpy.context.evaluated_depsgraph_get(), render=True, force=True)))
         T.check("live on, 3.4-4.4: render is exact while changing",
                 n == {"normals": 1, "positions_only": 0}, str(n))
     finally:
-        modifier_update.LIVE = live
+        T.state.LIVE = live
 
 
 def test_live_editing():
-    """4.5+ viewport (modifier_update.LIVE, forced on here: background mode runs no timers):
+    """4.5+ viewport (T.state.LIVE, forced on here: background mode runs no timers):
     while the result keeps changing (results less than SETTLE apart) positions only and
     Blender's own normals; after SETTLE the settle timer's update brings the exact normals,
     equal to those of an exact update of the same inputs. Exact Normals, render and LIVE off
@@ -336,29 +336,29 @@ def test_live_editing():
         live_editing_without_cheap_normals()
         return
     obj, lat, ref, mod = scene("suzanne")
-    st = modifier_update.state_of(obj, mod)
-    ro = modifier_update.result_object(obj, mod, create=False)
-    live, settle = modifier_update.LIVE, modifier_update.SETTLE
-    modifier_update.LIVE, modifier_update.SETTLE = True, 0.5
+    st = T.objects.state_of(obj, mod)
+    ro = T.objects.result_object(obj, mod, create=False)
+    live, settle = T.state.LIVE, T.state.SETTLE
+    T.state.LIVE, T.state.SETTLE = True, 0.5
 
     class Clock:
-        """modifier_update's clock (it reads only time.perf_counter), moved by this test:
+        """live's clock (it reads only time.perf_counter), moved by this test:
         'within SETTLE' and 'SETTLE later' are steps the test takes, not how fast this
         machine happens to run the edits in between."""
-        now = modifier_update.time.perf_counter()
+        now = T.live.time.perf_counter()
 
         @classmethod
         def perf_counter(cls):
             return cls.now
 
-    real_time, modifier_update.time = modifier_update.time, Clock
+    real_time, T.live.time = T.live.time, Clock
 
     def normals_attribute():
         a = ro.data.attributes.get("custom_normal")
         return None if a is None else T.point_attribute(ro.data, "custom_normal")
 
     def wait_settled():
-        Clock.now += modifier_update.SETTLE + 0.05
+        Clock.now += T.state.SETTLE + 0.05
 
     try:
         wait_settled()
@@ -378,9 +378,9 @@ def test_live_editing():
         n = _deform_calls(T.update)
         T.check("live: an update without change computes nothing", n == none, str(n))
         # The settle timer, as a window runs it SETTLE after the last change.
-        T.check("live: the timer waits while changes are recent", modifier_update.settle() is not None)
+        T.check("live: the timer waits while changes are recent", T.handlers.settle() is not None)
         wait_settled()
-        n = _deform_calls(lambda: T.check("live: the timer then stops", modifier_update.settle() is None))
+        n = _deform_calls(lambda: T.check("live: the timer then stops", T.handlers.settle() is None))
         T.check("live: the settle update is exact", n == exact, str(n))
         settled = T.positions(T.evaluated_mesh(obj))
         T.check("live: settled positions = the live ones (bitwise)",
@@ -388,15 +388,15 @@ def test_live_editing():
         settled_normals = normals_attribute()
         T.check("live: custom normals after settling", settled_normals is not None)
         # The same inputs computed exact from scratch: the same normals.
-        modifier_update.forget(obj, mod)
+        T.pipeline.forget(obj, mod)
         n = _deform_calls(lambda: smooth_ffd.update(obj, mod, force=True))
         T.check("live: settled normals = a fresh exact update's",
                 settled_normals is not None and np.array_equal(settled_normals, normals_attribute()),
                 str(n))
         wait_settled()
         _deform_calls(_move(lat, 0.1))
-        n = _deform_calls(lambda: modifier_update.update_modifier(obj, mod, bpy.context.evaluated_depsgraph_get(),
-                                                          render=True, force=True))
+        n = _deform_calls(lambda: T.pipeline.update_modifier(
+            obj, mod, T.state.Pass(bpy.context.evaluated_depsgraph_get(), render=True, force=True)))
         T.check("live: render is exact while changing", n == exact, str(n))
         T.update()
         wait_settled()
@@ -408,19 +408,19 @@ def test_live_editing():
         compat.set_modifier_input(mod, "Exact Normals", False)
         obj.update_tag()
         T.update()
-        modifier_update.LIVE = False
+        T.state.LIVE = False
         _deform_calls(_move(lat, 0.1))
         n = _deform_calls(_move(lat, 0.1))
         T.check("live off (background default): exact while changing", n == exact, str(n))
         # A window registers the settle timer; disabling the add-on drops it.
-        bpy.app.timers.register(modifier_update.settle, first_interval=60)
+        bpy.app.timers.register(T.handlers.settle, first_interval=60)
         T.handlers.unregister()
         T.check("live: the add-on's unregister drops the settle timer",
-                not bpy.app.timers.is_registered(modifier_update.settle))
+                not bpy.app.timers.is_registered(T.handlers.settle))
         T.handlers.register()
     finally:
-        modifier_update.LIVE, modifier_update.SETTLE = live, settle
-        modifier_update.time = real_time
+        T.state.LIVE, T.state.SETTLE = live, settle
+        T.live.time = real_time
 
 
 def test_incremental_updates():
@@ -429,7 +429,7 @@ def test_incremental_updates():
     edits recompute part of the patches, and after each edit of a run the core's output the
     add-on wrote is bitwise a whole frame of the same inputs, exact or not."""
     obj, lat, ref, mod = scene("suzanne", shape=(9, 9, 9))
-    st = modifier_update.state_of(obj, mod)
+    st = T.objects.state_of(obj, mod)
     partial = 0
     # Points (u, v, w) at u + 9 (v + 9 w): (2, 4, 4), again, (6, 4, 4), (0, 0, 0) (reaching
     # nothing of the mesh), then with exact normals (4, 2, 4), (4, 4, 6), and all at once.
@@ -654,8 +654,8 @@ def test_duplicate():
     dup = T.link(obj.copy())
     dup.location.x += 2.0
     T.update()
-    r1 = modifier_update.result_object(obj, obj.modifiers[0], create=False)
-    r2 = modifier_update.result_object(dup, dup.modifiers[0], create=False)
+    r1 = T.objects.result_object(obj, obj.modifiers[0], create=False)
+    r2 = T.objects.result_object(dup, dup.modifiers[0], create=False)
     T.check("duplicate gets its own result", r1 is not None and r2 is not None and r1 != r2,
             f"{r1} {r2}")
     parity("original after duplicate", obj, lat, ref, obj.modifiers[0])
@@ -725,7 +725,7 @@ def test_text_backend_file():
     on 4.1+ opening it moves the modifier to the menu group with every setting kept."""
     obj, lat, ref, mod = scene("cube")
     old = nodegroup._build_group(nodegroup.TEXT_LAYOUT)
-    ro = modifier_update.result_object(obj, mod, create=False)
+    ro = T.objects.result_object(obj, mod, create=False)
     settings = {"Lattice": lat, "Viewport Level": 3, "Render Level": 4, "Backend": "cpu",
                 "Strength": 0.75, "Result Object": ro}
     mod.node_group = old
@@ -749,7 +749,7 @@ def test_text_backend_file():
     T.check("opened: settings kept", str(kept["Backend"]).lower() == "cpu" and
             kept["Lattice"] == lat and kept["Viewport Level"] == 3 and kept["Render Level"] == 4
             and abs(kept["Strength"] - 0.75) < 1e-7
-            and kept["Result Object"] == modifier_update.result_object(obj, mod, create=False),
+            and kept["Result Object"] == T.objects.result_object(obj, mod, create=False),
             str(kept))
     parity("opened: parity", obj, lat, ref, mod)
     T.check("opened: cpu used", smooth_ffd.status(mod).startswith("OK cpu"), smooth_ffd.status(mod))
@@ -772,13 +772,13 @@ def test_apply_remove():
     T.check("apply: modifier gone", len(obj.modifiers) == 0)
     T.check("apply: render-level mesh", n == npatch * render_level ** 2, f"{n} tris")
     T.check("apply: result object deleted",
-            not any(o.get(modifier_update.OWNER_KEY) is not None for o in bpy.data.objects))
+            not any(o.get(T.state.OWNER_KEY) is not None for o in bpy.data.objects))
     T.check("apply: points object deleted",
-            not any(o.get(modifier_update.POINTS_KEY) is not None for o in bpy.data.objects))
+            not any(o.get(T.state.POINTS_KEY) is not None for o in bpy.data.objects))
     T.check("apply: old mesh untouched", source_digest_mesh(old) == old_digest)
     # The modifier is freed by Apply: its in-memory plan must go with it.
-    T.check("apply: in-memory state dropped", not modifier_update._states,
-            str(list(modifier_update._states)))
+    T.check("apply: in-memory state dropped", not T.state.states,
+            str(list(T.state.states)))
     obj, lat, ref, mod = scene()
     lat.data.points[0].co_deform.x += 0.1
     T.update()
@@ -786,7 +786,7 @@ def test_apply_remove():
     T.update()
     T.check("remove: hidden objects deleted", not any(
         o.get(k) is not None for o in bpy.data.objects
-        for k in (modifier_update.OWNER_KEY, modifier_update.POINTS_KEY)))
+        for k in (T.state.OWNER_KEY, T.state.POINTS_KEY)))
     got = T.positions(T.evaluated_mesh(obj))
     T.check("remove: shows the source", np.array_equal(got, T.positions(obj.data)))
 

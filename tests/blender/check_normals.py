@@ -8,7 +8,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
-from sffd_testlib import smooth_ffd, compat, modifier_update, latticeio, inputs, meshio  # noqa: E402
+from sffd_testlib import smooth_ffd, compat, latticeio, inputs, meshio  # noqa: E402
 
 ANGLE_TOL = 2e-3   # radians; 3.4-4.4 store custom normals as 16-bit angles in a normal space
 # 3.4-4.4 show a custom normal relative to the corner fan's own normal space, which bends it
@@ -72,7 +72,7 @@ def run_mesh(kind, level):
                              [len(p.vertices) for p in src.polygons])
     # Expected: cof(J) n at each original vertex, J of the whole map in object space.
     rest, pts, interp, _shape, _key, _weights = latticeio.read_lattice(lat, None)
-    l2o = inputs.lattice_to_object(np.array(obj.matrix_world), np.array(lat.matrix_world))
+    l2o = T.core.lattice_to_object(np.array(obj.matrix_world), np.array(lat.matrix_world))
     sf = T.core_module()
     lattice = sf.BlenderLattice(rest, pts, interpolation=interp, lattice_to_object=l2o)
     _pos, jac = lattice.evaluate(T.positions(src))
@@ -130,10 +130,10 @@ def run_mesh(kind, level):
     # Results whose normals never split (no render vertex of the plan repeats an output
     # vertex) get one custom normal a vertex from the core's compact layout (4.5+: the
     # point-domain attribute; 3.4-4.4: normals_split_custom_set_from_vertices), the others
-    # one a corner (the core's corner layout, modifier_update._layout). Either way every
+    # one a corner (the core's corner layout, plans.layout). Either way every
     # corner shows the core's normal (3.4-4.4: up to their 16-bit storage, checked on the
     # per-vertex path, the one new there).
-    st = modifier_update.state_of(obj, mod)
+    st = T.objects.state_of(obj, mod)
     res = st.result
     turned = st.deformer.plan.turned_normals
     T.check(f"{label}: shading normals turned only in faces far off their normals",
@@ -144,7 +144,7 @@ def run_mesh(kind, level):
                       else res.corner_normals).reshape(-1, 3)
     if kind == "uvsphere":
         T.check(f"{label}: nothing splits", per_vertex, f"{len(rv)} render vertices")
-    path = modifier_update.last_timing(obj, mod)["normals"]
+    path = T.pipeline.last_timing(obj, mod)["normals"]
     if compat.HAS_FREE_NORMAL_ATTRIBUTE:
         want_path = "point attribute" if per_vertex else "attribute"
     else:
@@ -158,7 +158,7 @@ def run_mesh(kind, level):
     if compat.HAS_FREE_NORMAL_ATTRIBUTE:
         want = 'POINT' if per_vertex else 'CORNER'
         # The add-on's own result mesh (what the modifier's node group reads).
-        attr = modifier_update.result_object(obj, mod, create=False).data.attributes.get("custom_normal")
+        attr = T.objects.result_object(obj, mod, create=False).data.attributes.get("custom_normal")
         domain = attr.domain if attr is not None else None
         T.check(f"{label}: custom normals on the {want} domain", domain == want, str(domain))
         if attr is not None:

@@ -12,7 +12,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
-from sffd_testlib import smooth_ffd, modifier_update  # noqa: E402
+from sffd_testlib import smooth_ffd  # noqa: E402
 
 VIEWPORT, RENDER = 1, 3
 RES = 48
@@ -57,7 +57,7 @@ def install_probe(obj, record):
     """Records what the result mesh holds while the frame renders."""
     def probe(scene, *_):
         mod = obj.modifiers[0]
-        ro = modifier_update.result_object(obj, mod, create=False)
+        ro = T.objects.result_object(obj, mod, create=False)
         record.append({"frame": scene.frame_current, "tris": len(ro.data.polygons),
                        "positions": T.positions(ro.data)[:len(obj.data.vertices)].tolist(),
                        "status": smooth_ffd.status(mod)})

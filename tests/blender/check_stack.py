@@ -28,7 +28,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
-from sffd_testlib import smooth_ffd, compat, modifier_update, handlers, nodegroup  # noqa: E402
+from sffd_testlib import smooth_ffd, compat, handlers, nodegroup  # noqa: E402
 
 TOL = 1e-5
 VIEWPORT, RENDER = 1, 2
@@ -190,7 +190,7 @@ def test_bake():
             tris[3] != tris[4] and tris[4] == tris[5], str(tris))
     sc.frame_set(2)
     T.update()
-    ro = modifier_update.result_object(obj, mod, create=False)
+    ro = T.objects.result_object(obj, mod, create=False)
     meshes = smooth_ffd.bake_smooth_ffd(obj, mod, 1, 5)
     T.check("bake: frames with equal inputs share a mesh (4 and 5)", meshes == 4, str(meshes))
     T.check("bake: status says baked", status(mod).startswith("Baked: frames 1-5"), status(mod))
@@ -200,13 +200,13 @@ def test_bake():
         same(f"bake, with the add-on: frame {f} is the live render-level result",
              snapshot(T.evaluated_mesh(obj)), live[f])
     # Inside the bake, edits do not show (as with any bake) and nothing is computed.
-    before = modifier_update.counters["computed"]
+    before = T.state.counters["computed"]
     lat.data.points[0].co_deform.x += 0.2
     T.update()
     same("bake: an edit inside the baked frames shows the bake",
          snapshot(T.evaluated_mesh(obj)), live[5])
     T.check("bake: nothing computed inside the baked frames",
-            modifier_update.counters["computed"] == before)
+            T.state.counters["computed"] == before)
     lat.data.points[0].co_deform.x -= 0.2
     # Outside the bake the modifier is live (viewport level).
     sc.frame_set(7)
@@ -257,7 +257,7 @@ def test_bake():
     T.check("bake: reopened with the add-on, the bake is kept", status(mod).startswith("Baked"),
             status(mod))
     had = smooth_ffd.clear_bake(obj, mod)
-    left = [o.name for o in bpy.data.objects if o.get(T.bake.BAKE_KEY) is not None]
+    left = [o.name for o in bpy.data.objects if o.get(T.state.BAKE_KEY) is not None]
     T.check("clear bake: the bake's objects are gone", had and not left, str(left))
     T.update()
     n = len(T.evaluated_mesh(obj).polygons)
@@ -266,7 +266,7 @@ def test_bake():
     # Remove deletes a bake with the modifier.
     smooth_ffd.bake_smooth_ffd(obj, mod, 2, 3)
     smooth_ffd.remove_smooth_ffd(obj, mod)
-    left = [o.name for o in bpy.data.objects if o.get(T.bake.BAKE_KEY) is not None]
+    left = [o.name for o in bpy.data.objects if o.get(T.state.BAKE_KEY) is not None]
     T.check("remove: the bake goes with the modifier", not left, str(left))
 
     # Apply inside the baked frames applies what the modifier shows (the bake) and deletes it.
@@ -280,7 +280,7 @@ def test_bake():
     T.update()
     smooth_ffd.apply_smooth_ffd(obj, mod)
     T.update()
-    left = [o.name for o in bpy.data.objects if o.get(T.bake.BAKE_KEY) is not None]
+    left = [o.name for o in bpy.data.objects if o.get(T.state.BAKE_KEY) is not None]
     got = T.positions(obj.data).astype(np.float32)
     T.check("apply inside the baked frames: the baked mesh, the bake deleted",
             not obj.modifiers and not left and got.shape == want["pos"].shape and
@@ -296,13 +296,13 @@ def test_stale_without_addon():
     src = T.positions(obj.data).astype(np.float32)
     sc.frame_set(3)
     T.update()
-    lo, hi = modifier_update.get_frames(mod, "Result")
+    lo, hi = T.frames.get_frames(mod, "Result")
     T.check("animated lattice: the result belongs to frame 3 only", (lo, hi) == (2.5, 3.5),
             f"[{lo}, {hi})")
     T.check("animated lattice: the status names the frame", ", frame 3, " in status(mod),
             status(mod))
     live3 = snapshot(T.evaluated_mesh(obj))
-    ro = modifier_update.result_object(obj, mod, create=False)
+    ro = T.objects.result_object(obj, mod, create=False)
     plain_copy(ro.data, "saved3")
     plain_copy(obj.data, "src.plain")
     path = os.path.join(tempfile.mkdtemp(), "stale.blend")
@@ -340,7 +340,7 @@ def test_stale_without_addon():
     lat.data.points[13].co_deform.z += 0.5
     T.update()
     T.check("static lattice: the result belongs to every frame",
-            modifier_update.get_frames(mod, "Result") == nodegroup.ALWAYS and
+            T.frames.get_frames(mod, "Result") == T.state.ALWAYS and
             ", frame " not in status(mod), status(mod))
     live = snapshot(T.evaluated_mesh(obj))
     path = os.path.join(tempfile.mkdtemp(), "static.blend")
@@ -424,7 +424,7 @@ def test_delete_lattice():
     # A file saved by an older add-on with the deleted lattice kept alive by the modifier.
     obj, lat, mod = scene_setup("cube", animate=False)
     path = os.path.join(tempfile.mkdtemp(), "ghost.blend")
-    with handlers.muted():   # as an older add-on did: nothing lets go of it
+    with T.state.muted():   # as an older add-on did: nothing lets go of it
         for c in list(lat.users_collection):
             c.objects.unlink(lat)
         T.check("ghost file: the lattice kept by the modifier alone", lat.users == 1,
@@ -457,16 +457,16 @@ def test_hidden():
     ref = twin(obj, lat)
     ref.hide_set(True)
     T.update()
-    computed = lambda: modifier_update.counters["computed"]
+    computed = lambda: T.state.counters["computed"]
 
     obj.hide_set(True)
     T.update()
-    n0, s0 = computed(), handlers.skipped_hidden[0]
+    n0, s0 = computed(), T.state.skipped_hidden[0]
     for i in range(3):
         lat.data.points[4 + i].co_deform.z += 0.1
         T.update()
     T.check("hidden (H): not recomputed on lattice edits", computed() == n0 and
-            handlers.skipped_hidden[0] > s0, f"{computed() - n0} computed")
+            T.state.skipped_hidden[0] > s0, f"{computed() - n0} computed")
     obj.hide_set(False)
     T.update()
     T.check("hidden (H): recomputed once when shown", computed() == n0 + 1,
@@ -520,26 +520,26 @@ def test_rename():
     obj, lat, mod = scene_setup("suzanne", animate=False)
     ref = twin(obj, lat)
     T.update()
-    ro = modifier_update.result_object(obj, mod, create=False)
-    plans, computed = modifier_update.plans_built[0], modifier_update.counters["computed"]
-    results = len([o for o in bpy.data.objects if modifier_update.OWNER_KEY in o.keys()])
+    ro = T.objects.result_object(obj, mod, create=False)
+    plans, computed = T.state.plans_built[0], T.state.counters["computed"]
+    results = len([o for o in bpy.data.objects if T.state.OWNER_KEY in o.keys()])
     obj.name = "renamed object"
     mod.name = "renamed modifier"
     mod = obj.modifiers["renamed modifier"]
     T.update()
-    T.check("rename: nothing recomputed", modifier_update.counters["computed"] == computed,
-            f"{modifier_update.counters['computed'] - computed} computed")
+    T.check("rename: nothing recomputed", T.state.counters["computed"] == computed,
+            f"{T.state.counters['computed'] - computed} computed")
     lat.data.points[4].co_deform.z += 0.3
     T.update()
     parity("rename: live after renaming the object and the modifier", obj, lat, ref, mod)
     T.check("rename: same result object",
-            modifier_update.result_object(obj, mod, create=False) == ro)
+            T.objects.result_object(obj, mod, create=False) == ro)
     T.check("rename: no result orphaned",
-            len([o for o in bpy.data.objects if modifier_update.OWNER_KEY in o.keys()]) == results)
-    T.check("rename: the plan kept", modifier_update.plans_built[0] == plans,
-            f"{modifier_update.plans_built[0] - plans} plans built")
-    T.check("rename: the in-memory state found", modifier_update.state_of(obj, mod) is not None
-            and len(modifier_update._states) == 1, str(len(modifier_update._states)))
+            len([o for o in bpy.data.objects if T.state.OWNER_KEY in o.keys()]) == results)
+    T.check("rename: the plan kept", T.state.plans_built[0] == plans,
+            f"{T.state.plans_built[0] - plans} plans built")
+    T.check("rename: the in-memory state found", T.objects.state_of(obj, mod) is not None
+            and len(T.state.states) == 1, str(len(T.state.states)))
 
 
 def test_lock_interface():
@@ -561,24 +561,24 @@ def test_lock_interface():
     obj, lat = bpy.data.objects["src"], bpy.data.objects["lat"]
     mod = obj.modifiers[0]
     lat.data.points[3].co_deform.x += 0.2
-    n0 = modifier_update.counters["computed"]
+    n0 = T.state.counters["computed"]
     got = []
     thread = threading.Thread(target=lambda: got.append(handlers.update_all(sc, render=True)))
     thread.start()
     thread.join()
     T.check("render thread without Lock Interface: nothing written",
-            got == [0] and modifier_update.counters["computed"] == n0, str(got))
+            got == [0] and T.state.counters["computed"] == n0, str(got))
     T.update()
 
     # A window session: add_smooth_ffd turns it on and says so, in the status too.
-    real = modifier_update.window_session
-    modifier_update.window_session = lambda: True
+    real = T.statusline.window_session
+    T.statusline.window_session = lambda: True
     try:
         obj2 = T.make_mesh("cube", "second")
         mod2 = smooth_ffd.add_smooth_ffd(obj2, lat, viewport_level=VIEWPORT, render_level=RENDER)
         T.check("window: add_smooth_ffd turns Lock Interface on and says so",
-                sc.render.use_lock_interface and T.api.lock_message[0] and
-                "Lock Interface" in T.api.lock_message[0], str(T.api.lock_message[0]))
+                sc.render.use_lock_interface and T.state.lock_message[0] and
+                "Lock Interface" in T.state.lock_message[0], str(T.state.lock_message[0]))
         T.check("window: the status says so", "Lock Interface turned on" in status(mod2),
                 status(mod2))
         sc.render.use_lock_interface = False
@@ -587,8 +587,8 @@ def test_lock_interface():
         T.check("window, Lock Interface turned off: the status warns",
                 "Lock Interface is off" in status(mod2), status(mod2))
     finally:
-        modifier_update.window_session = real
-        modifier_update._lock_turned_on.clear()
+        T.statusline.window_session = real
+        T.state.lock_turned_on.clear()
 
 
 def test_migrate_layouts():
@@ -605,13 +605,13 @@ def _migrate_layout(old_layout):
     obj, lat, mod = scene_setup("cube", animate=False)
     old = nodegroup._build_group(old_layout)
     old_name = old.name
-    ro = modifier_update.result_object(obj, mod, create=False)
+    ro = T.objects.result_object(obj, mod, create=False)
     values = {"Lattice": lat, "Render Level": 4, "Backend": "cpu", "Result Object": ro}
     if old_layout in nodegroup.FRAMES_LAYOUTS:
         values.update({"Result From": 2.5, "Result To": 3.5, "Bake From": 10.5, "Bake To": 12.5})
     else:
         values["Show Result"] = True
-    with handlers.muted():
+    with T.state.muted():
         mod.node_group = old
         for k, v in values.items():
             compat.set_modifier_input(mod, k, v)
@@ -627,7 +627,7 @@ def _migrate_layout(old_layout):
     T.check(f"migrated from {old_layout}: live", status(mod).startswith("OK cpu"), status(mod))
     lat.data.points[1].co_deform.z += 0.1
     T.update()
-    sent = (modifier_update.last_timing(obj, mod) or {}).get("points")
+    sent = (T.pipeline.last_timing(obj, mod) or {}).get("points")
     T.check(f"migrated from {old_layout}: lattice edit "
             f"{'through' if compat.POSITIONS_THROUGH_POINTS else 'not through'} the Result Points",
             status(mod).startswith("OK cpu") and sent == compat.POSITIONS_THROUGH_POINTS,

@@ -33,7 +33,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
-from sffd_testlib import smooth_ffd, compat, modifier_update, stack_input  # noqa: E402
+from sffd_testlib import smooth_ffd, compat, stack_input  # noqa: E402
 
 sys.path.insert(0, os.path.join(T.ROOT, "blender_scenes"))
 import character as C  # noqa: E402
@@ -84,7 +84,7 @@ def parity(name, a, b, lat, mods):
 
 
 def reads():
-    return dict(stack_input.counters)
+    return dict(T.state.stack_counters)
 
 
 def with_lattice(obj, lat, name="Lattice", vertex_group=""):
@@ -139,7 +139,7 @@ def materials(mesh):
 def at_source_corners(a_mesh, b_mesh, values_a, values_b):
     """Max difference of per-corner values between A's output corners at source vertices and
     B's corner of the same source face and vertex."""
-    fa, va = corner_map(a_mesh, modifier_update.meshio.SOURCE_FACE_ATTRIBUTE)
+    fa, va = corner_map(a_mesh, T.meshio.SOURCE_FACE_ATTRIBUTE)
     fb, vb = corner_map(b_mesh)
     index = {(int(f), int(v)): c for c, (f, v) in enumerate(zip(fb, vb))}
     nv = len(b_mesh.vertices)
@@ -172,11 +172,11 @@ def test_armature():
             and after["forced"] == before["forced"] and after["deferred"] == before["deferred"],
             f"{before} -> {after}")
     T.check("playback: the result belongs to its frame",
-            modifier_update.get_frames(mod, "Result") == (FRAMES[-1] - 0.5, FRAMES[-1] + 0.5),
-            str(modifier_update.get_frames(mod, "Result")))
+            T.frames.get_frames(mod, "Result") == (FRAMES[-1] - 0.5, FRAMES[-1] + 0.5),
+            str(T.frames.get_frames(mod, "Result")))
     T.check("nothing above: status without warning, own mesh read",
             smooth_ffd.status(plain_mod).startswith("OK") and
-            modifier_update.state_of(plain, plain_mod).source_kind == stack_input.OWN,
+            T.objects.state_of(plain, plain_mod).source_kind == stack_input.OWN,
             smooth_ffd.status(plain_mod))
 
     # What comes with the posed geometry: UVs and material indices at the source corners.
@@ -185,7 +185,7 @@ def test_armature():
     d_uv, n = at_source_corners(ea, eb, uvs(ea, "UVMap"), uvs(eb, "UVMap"))
     T.check("UV map from the stack at source corners", d_uv <= 1e-6, f"{d_uv:.1e} over {n}")
     fa = np.empty(len(ea.polygons), np.int32)
-    ea.attributes[modifier_update.meshio.SOURCE_FACE_ATTRIBUTE].data.foreach_get("value", fa)
+    ea.attributes[T.meshio.SOURCE_FACE_ATTRIBUTE].data.foreach_get("value", fa)
     T.check("material indices from the stack", np.array_equal(materials(ea), materials(eb)[fa]))
 
     # Same frame: a pose edit reads the stack again (one more evaluation), a lattice edit not.
@@ -202,7 +202,7 @@ def test_armature():
     parity("lattice edit with a pose", a, b, lat, [mod])
     T.check("lattice edit: the stack is not read", reads() == r1, f"{r1} -> {reads()}")
     T.check("nothing above: never read from the stack",
-            modifier_update.state_of(plain, plain_mod).source_kind == stack_input.OWN)
+            T.objects.state_of(plain, plain_mod).source_kind == stack_input.OWN)
 
     # Vertex groups: only carried to the result where something reads them (none below).
     eobj = a.evaluated_get(bpy.context.evaluated_depsgraph_get())
@@ -214,14 +214,14 @@ def _core_corner_normals(mesh, obj, lat):
     """The core's corner normals for `mesh` (the geometry the add-on should read) deformed by
     lat at LEVEL: an independent run of the same computation."""
     dg = bpy.context.evaluated_depsgraph_get()
-    source = modifier_update.meshio.SourceMesh(mesh)
-    rest, pts, interp, _shape, _key, _weights = modifier_update.latticeio.read_lattice(lat, dg)
-    l2o = modifier_update.inputs.lattice_to_object(
-        modifier_update.latticeio.world_matrix(obj, dg),
-        modifier_update.latticeio.world_matrix(lat, dg))
+    source = T.meshio.SourceMesh(mesh)
+    rest, pts, interp, _shape, _key, _weights = T.latticeio.read_lattice(lat, dg)
+    l2o = T.core.lattice_to_object(
+        T.latticeio.world_matrix(obj, dg),
+        T.latticeio.world_matrix(lat, dg))
     lattice = T.core_module().BlenderLattice(rest, pts, interpolation=interp,
                                              lattice_to_object=l2o)
-    res = modifier_update.core.make_deformer(source, lattice, LEVEL, "cpu").deform(lattice)
+    res = T.core.make_deformer(source, lattice, LEVEL, "cpu").deform(lattice)
     return np.asarray(res.corner_normals, np.float64).reshape(-1, 3)
 
 
@@ -302,8 +302,8 @@ def test_modifiers_above():
             d_uv, n = at_source_corners(ea, eb, uvs(ea, "UVMap"), uvs(eb, "UVMap"))
             T.check("mirror: mirrored UVs from the stack", d_uv <= 1e-6, f"{d_uv:.1e} over {n}")
         T.check(f"{kind.lower()}: nothing animated, the result holds for every frame",
-                modifier_update.get_frames(mod, "Result") == modifier_update.nodegroup.ALWAYS)
-        plans = modifier_update.plans_built[0]
+                T.frames.get_frames(mod, "Result") == T.state.ALWAYS)
+        plans = T.state.plans_built[0]
         for obj in objs:   # a setting above changes the topology: a new plan
             m = obj.modifiers[kind.title()]
             if kind == "MIRROR":
@@ -314,8 +314,8 @@ def test_modifiers_above():
                 m.count = 3
         T.update()
         parity(f"{kind.lower()} above, setting changed", a, b, lat, [mod])
-        T.check(f"{kind.lower()}: new plan", modifier_update.plans_built[0] == plans + 1,
-                f"{modifier_update.plans_built[0] - plans} plans built")
+        T.check(f"{kind.lower()}: new plan", T.state.plans_built[0] == plans + 1,
+                f"{T.state.plans_built[0] - plans} plans built")
 
 
 def test_shape_keys():
@@ -368,7 +368,7 @@ def test_two_smooth_ffd():
         sc.frame_set(f)
         parity(f"two in a row: frame {f}", a, b, lat2, [m1, m2])
     T.check("the lower one reads the upper one's result",
-            modifier_update.state_of(a, m2).source_kind == stack_input.CHAIN)
+            T.objects.state_of(a, m2).source_kind == stack_input.CHAIN)
     lat1.data.points[4].co_deform.x += 0.2
     T.update()
     parity("two in a row: upper lattice edited", a, b, lat2, [m1, m2])
@@ -404,7 +404,7 @@ def test_modifiers_below():
     sc = bpy.context.scene
     sc.frame_set(FRAMES[0])
     T.update()
-    ro = modifier_update.result_object(a, mod, create=False)
+    ro = T.objects.result_object(a, mod, create=False)
     size = T.lattice_size(a, lat)
     before = reads()
     for f in FRAMES[1:]:
@@ -422,7 +422,7 @@ def test_modifiers_below():
     T.check("modifiers below: UV map from the stack at source corners", d_uv <= 1e-6,
             f"{d_uv:.1e} over {n}")
     fa = np.empty(len(rm.polygons), np.int32)
-    rm.attributes[modifier_update.meshio.SOURCE_FACE_ATTRIBUTE].data.foreach_get("value", fa)
+    rm.attributes[T.meshio.SOURCE_FACE_ATTRIBUTE].data.foreach_get("value", fa)
     T.check("modifiers below: material indices from the stack",
             np.array_equal(materials(rm), materials(eb)[fa]))
     after = reads()
@@ -491,19 +491,19 @@ def test_modifiers_between():
     sc = bpy.context.scene
     sc.frame_set(FRAMES[0])
     T.update()
-    r1 = modifier_update.result_object(a, m1, create=False)
-    r2 = modifier_update.result_object(a, m2, create=False)
+    r1 = T.objects.result_object(a, m1, create=False)
+    r2 = T.objects.result_object(a, m2, create=False)
     for f in (2, 4, FRAMES[-1]):
-        deferred = stack_input.counters["deferred"]
+        deferred = T.state.stack_counters["deferred"]
         sc.frame_set(f)
         # Inside frame_change_post the upper one writes its result, and the lower one's input
         # (below it) is shown only by the next evaluation: it waits for it (defer), showing
         # its input meanwhile; in a window a timer runs that update at once.
         T.check(f"modifiers between: frame {f}, the lower one waits for the next update",
-                stack_input.counters["deferred"] == deferred + 1 and
-                modifier_update.get_frames(m1, "Result") == (f - 0.5, f + 0.5) and
-                modifier_update.get_frames(m2, "Result") == (1.0, 0.0),
-                f"{stack_input.counters}, {modifier_update.get_frames(m2, 'Result')}")
+                T.state.stack_counters["deferred"] == deferred + 1 and
+                T.frames.get_frames(m1, "Result") == (f - 0.5, f + 0.5) and
+                T.frames.get_frames(m2, "Result") == (1.0, 0.0),
+                f"{T.state.stack_counters}, {T.frames.get_frames(m2, 'Result')}")
         smooth_ffd.update(a)   # what the timer runs
         statuses = [smooth_ffd.status(m) for m in (m1, m2)]
         got, got2 = T.positions(r1.data), T.positions(r2.data)   # before any evaluation
@@ -559,7 +559,7 @@ def test_render_stack():
     sc.render.resolution_x = sc.render.resolution_y = 16
     T.update()
     seen = {}
-    ro = modifier_update.result_object(a, mod, create=False)
+    ro = T.objects.result_object(a, mod, create=False)
 
     def grab(scene, *_args):
         seen["pos"] = T.positions(ro.data)
@@ -613,7 +613,7 @@ def test_edits_the_check_misses():
     r1 = reads()
     T.check("UV-only edit above: read on the next evaluation", r1["deferred"] == r0["deferred"] + 1
             and len(evaluated(a).vertices) == len(evaluated(b).vertices), f"{r0} -> {r1}")
-    stack_input._deferred_update()
+    T.handlers._deferred_update()
     ea, eb = evaluated(a), evaluated(b)
     d_uv, n = at_source_corners(ea, eb, uvs(ea, "UVMap"), uvs(eb, "UVMap"))
     T.check("UV-only edit above: UVs follow", d_uv <= 1e-6 and reads()["reads"] == r1["reads"] + 1,
@@ -631,7 +631,7 @@ def test_check_without_addon():
     mod = smooth_ffd.add_smooth_ffd(a, lat, viewport_level=LEVEL)
     T.update()
     T.check("static pose: the result holds for every frame",
-            modifier_update.get_frames(mod, "Result") == modifier_update.nodegroup.ALWAYS)
+            T.frames.get_frames(mod, "Result") == T.state.ALWAYS)
     smooth_ffd.unregister()
     before = tuple(rig.pose.bones["arm.L"].rotation_euler)
     try:
@@ -664,7 +664,7 @@ def test_apply():
     err = float(np.abs(got[:len(exp)] - exp).max()) / T.lattice_size(a, lat)
     T.check("apply with a modifier above: the own mesh, the Armature kept",
             err <= TOL and [m.type for m in a.modifiers] == ['ARMATURE'] and
-            not any(o.get(stack_input.STACK_KEY) for o in bpy.data.objects),
+            not any(o.get(T.state.STACK_KEY) for o in bpy.data.objects),
             f"err {err:.2e}, {[m.type for m in a.modifiers]}")
 
 

@@ -12,7 +12,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
-from sffd_testlib import smooth_ffd, modifier_update  # noqa: E402
+from sffd_testlib import smooth_ffd  # noqa: E402
 
 OUT = T.args()[0]
 records = []
@@ -20,7 +20,7 @@ records = []
 
 def on_post(scene, *_):
     obj, ref = bpy.data.objects["src"], bpy.data.objects["src.ref"]
-    ro = modifier_update.result_object(obj, obj.modifiers[0], create=False)
+    ro = T.objects.result_object(obj, obj.modifiers[0], create=False)
     got = T.positions(ro.data)[:len(obj.data.vertices)]
     dg = bpy.context.evaluated_depsgraph_get()
     exp = T.positions(ref.evaluated_get(dg).data)

@@ -42,11 +42,12 @@ def _load_addon():
 # The add-on and its modules: check scripts import them from here, never by name, so that
 # they test whichever copy this is (installed: bl_ext.user_default.smooth_ffd on 4.2+).
 smooth_ffd = _load_addon()
-MODULES = ("api", "bake", "carry", "compat", "core", "handlers", "inputs", "latticeio", "linked",
-           "meshio", "modifier_update", "nodegroup", "result_arrays", "stack_input")
-(api, bake, carry, compat, core, handlers, inputs, latticeio, linked, meshio, modifier_update,
- nodegroup, result_arrays, stack_input) = (importlib.import_module(f"{smooth_ffd.__name__}.{m}")
-                                           for m in MODULES)
+MODULES = ("api", "bake", "carry", "compat", "core", "frames", "gather", "handlers", "inputs",
+           "latticeio", "linked", "live", "meshio", "nodegroup", "objects", "pipeline", "plans",
+           "result_arrays", "stack_input", "state", "statusline", "write")
+(api, bake, carry, compat, core, frames, gather, handlers, inputs, latticeio, linked, live, meshio,
+ nodegroup, objects, pipeline, plans, result_arrays, stack_input, state, statusline, write) = (
+    importlib.import_module(f"{smooth_ffd.__name__}.{m}") for m in MODULES)
 
 _registered = INSTALLED   # enabling an installed add-on registers it
 _results = []
@@ -86,7 +87,7 @@ def args():
 
 
 def clear():
-    modifier_update.forget()
+    pipeline.forget()
     for coll in (bpy.data.objects, bpy.data.meshes, bpy.data.lattices, bpy.data.node_groups,
                  bpy.data.materials, bpy.data.actions, bpy.data.shape_keys):
         for item in list(coll):
@@ -268,7 +269,7 @@ def points_twin(points, obj, lat, strength=1.0):
 def patches(obj, mod):
     """Patches of the modifier's current plan: input triangles cut by the lattice's knot
     planes. Each patch is tessellated into level^2 output triangles."""
-    t = modifier_update.last_timing(obj, mod)
+    t = pipeline.last_timing(obj, mod)
     return int(t["stats"]["patches"]) if t else -1
 
 

@@ -25,12 +25,19 @@ def load_compat(version):
     fake.app = types.SimpleNamespace(version=version)
     saved = sys.modules.get("bpy")
     sys.modules["bpy"] = fake
+    # compat imports the add-on's state module (`from . import state`): both are loaded as
+    # modules of a package of their own, one per version.
+    package = f"smooth_ffd_compat_{'_'.join(map(str, version))}"
+    sys.modules[package] = types.ModuleType(package)
+    sys.modules[package].__path__ = []
     try:
-        spec = importlib.util.spec_from_file_location(
-            f"smooth_ffd_compat_{'_'.join(map(str, version))}",
-            os.path.join(ROOT, "addon", "smooth_ffd", "compat.py"))
-        mod = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(mod)
+        for name in ("state", "compat"):
+            spec = importlib.util.spec_from_file_location(
+                f"{package}.{name}", os.path.join(ROOT, "addon", "smooth_ffd", f"{name}.py"))
+            mod = importlib.util.module_from_spec(spec)
+            sys.modules[spec.name] = mod
+            spec.loader.exec_module(mod)
+            setattr(sys.modules[package], name, mod)
         return mod
     finally:
         if saved is None:

@@ -23,13 +23,20 @@ def test_lattice_weight_grid_u_fastest(inputs):
     assert np.array_equal(inputs.lattice_grid(pts, (nu, nv, nw))[..., 0], g)
 
 
-def test_lattice_to_object(inputs):
+def test_lattice_to_object(addon_core):
+    core, inputs = addon_core.core, addon_core.inputs
     m = np.diag([2.0, 2.0, 2.0, 1.0]); m[:3, 3] = (1, 0, 0)
     lat = np.eye(4); lat[:3, 3] = (3, 0, 0)
-    l2o = inputs.lattice_to_object(m, lat)
+    l2o = core.lattice_to_object(m, lat)
     assert np.allclose(l2o @ [0, 0, 0, 1], [1, 0, 0, 1])   # (3 - 1) / 2
-    with pytest.raises(inputs.SmoothFFDError):
-        inputs.lattice_to_object(np.diag([0.0, 1, 1, 1]), lat)
+    with pytest.raises(inputs.SmoothFFDError, match="singular"):
+        core.lattice_to_object(np.diag([0.0, 1, 1, 1]), lat)
+    # The core's check (relative to the largest entry), not a threshold of the add-on's own:
+    # a tiny uniform scale is fine, one axis 1e-13 of the others is singular.
+    assert np.allclose(core.lattice_to_object(np.diag([1e-20, 1e-20, 1e-20, 1.0]), np.eye(4)),
+                       np.diag([1e20, 1e20, 1e20, 1.0]))
+    with pytest.raises(inputs.SmoothFFDError, match="singular"):
+        core.lattice_to_object(np.diag([1.0, 1.0, 1e-13, 1.0]), lat)
 
 
 def test_vertex_weights(inputs):
@@ -40,17 +47,20 @@ def test_vertex_weights(inputs):
     assert inputs.vertex_weights(4, None, [], [], [], False) is None
 
 
-def test_parse(inputs):
-    assert inputs.parse_backend(" CPU ") == "cpu"
-    assert inputs.parse_backend("CUDA") == "cuda"       # a menu item's name (4.1+)
-    assert inputs.parse_backend("") == "auto"
-    with pytest.raises(inputs.SmoothFFDError):
-        inputs.parse_backend("gpu")
-    assert inputs.parse_level(3, "x") == 3
-    with pytest.raises(inputs.SmoothFFDError):
-        inputs.parse_level(0, "x")
-    assert inputs.interpolation_names(["KEY_BSPLINE", "KEY_LINEAR", "KEY_CARDINAL"]) == \
-        ("BSPLINE", "LINEAR", "CARDINAL")
+def test_parse(addon_core):
+    """Levels and backends as the core defines them (smoothffd.MAX_LEVEL, smoothffd.DEVICES)."""
+    core, inputs, sf = addon_core.core, addon_core.inputs, addon_core.core.smoothffd()
+    assert sf.DEVICES == ("auto", "cpu", "cuda")
+    assert core.parse_backend(" CPU ") == "cpu"
+    assert core.parse_backend("CUDA") == "cuda"       # a menu item's name (4.1+)
+    assert core.parse_backend("") == "auto"
+    with pytest.raises(inputs.SmoothFFDError, match="auto, cpu, cuda"):
+        core.parse_backend("gpu")
+    assert core.parse_level(3, "x") == 3
+    assert core.parse_level(sf.MAX_LEVEL, "x") == sf.MAX_LEVEL == 64
+    for bad in (0, sf.MAX_LEVEL + 1):
+        with pytest.raises(inputs.SmoothFFDError, match=f"between 1 and {sf.MAX_LEVEL}"):
+            core.parse_level(bad, "x")
 
 
 def test_digest(inputs):

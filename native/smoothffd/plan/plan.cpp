@@ -38,8 +38,6 @@ struct StageTimer {
   }
 };
 
-constexpr int kMaxPlanLevel = 1024;  // 1M triangles a patch; the Python API stops at 64
-
 // PlanOptions::memory_limit, checked once the clipping has decided the patch count.
 void check_memory_limit(const PlanOptions& opt, const InputMesh& mesh, const LatticeSpec& lattice,
                         int triangles, const ClipResult& clip) {
@@ -98,8 +96,8 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   if (opt.level < 1) throw std::invalid_argument("level: must be at least 1");
   // The tessellation tables grow as L^2 whatever the mesh: level 2^31 - 1 from the bindings
   // spent 11 s allocating before a MemoryError (found by native/fuzz/fuzz_bindings.py).
-  if (opt.level > kMaxPlanLevel)
-    throw std::invalid_argument("level: at most " + std::to_string(kMaxPlanLevel) + " (L^2 triangles a patch), got " +
+  if (opt.level > kMaxLevel)
+    throw std::invalid_argument("level: at most " + std::to_string(kMaxLevel) + " (L^2 triangles a patch), got " +
                                 std::to_string(opt.level));
   check_lattice_structure(lattice);
   Plan plan;

@@ -43,8 +43,12 @@ struct InputMesh {
   std::vector<float> vertex_weight;  // #V, or empty: all 1
 };
 
+// The highest level build_plan takes (L^2 output triangles a patch), the one limit the Python
+// package (smoothffd.MAX_LEVEL), its command line and the Blender add-on ask for.
+constexpr int kMaxLevel = 64;
+
 struct PlanOptions {
-  int level = 10;                      // L: L^2 output triangles a patch
+  int level = 10;                      // L: L^2 output triangles a patch, 1..kMaxLevel
   double sharp_angle_degrees = 1.0;    // corner normals further apart than this are split
   // Refuse (PlanTooLarge) a plan whose tables, one frame's evaluator buffers and one
   // per-corner result would take more than this many bytes (estimate_plan_bytes); 0: no
@@ -104,6 +108,9 @@ struct Plan {
   int output_vertices = 0;  // N
   int output_triangles = 0; // T = P L^2
   int render_vertices = 0;  // R >= N (for the output vertices that lie on a patch)
+  // Whether any output vertex has more than one normal (R > N: a sharp edge or split normals
+  // on the input): then a normal a corner describes the result, else one a vertex.
+  bool splits_normals() const { return render_vertices > output_vertices; }
   int flat_triangles = 0;   // input triangles of flat faces (plan/rest_surface.hpp)
   int bounded_vertices = 0; // input vertices whose normals were blended toward their
                             // triangles' own so that no patch folds (AdjustNormals::trust < 1)

@@ -1,0 +1,131 @@
+"""The one update path of a Smooth FFD modifier: read its inputs (gather) -> find or build its
+plan (plans) -> run the core's frame (plans.frame) -> write the result mesh (write) and the
+status (status). The handlers, the operators and the scripting API call update_modifier;
+nothing here calls back up to them."""
+import time
+
+from . import frames, gather, inputs, linked, live, objects, plans, stack_input, state, \
+    statusline, write
+
+
+def update_modifier(obj, mod, p):
+    """Brings one modifier's result up to date for the round p (a state.Pass); returns True
+    when it wrote new geometry.
+
+    Errors never propagate: they go to the status line and the console, and the modifier
+    passes the source geometry through (the source mesh itself is never written).
+
+    p.early (depsgraph_update_pre, before Blender evaluates the edit, gather.early_inputs):
+    computes from the original data only where that provably equals what the evaluation will
+    give, else does nothing; never reports errors (the post handler, which checks every input
+    again against the evaluated data, does). The result's frame range (nodegroup) is written
+    from p.scene's frame.
+    """
+    st = None
+    if obj.library is not None:   # linked data are never written (linked.py)
+        linked.report(obj, mod)
+        return False
+    early, render, force = p.early, p.render, p.force
+    try:
+        linked.prepare_override(obj, mod)
+        ro = objects.result_object(obj, mod, create=not early)
+        if ro is None:
+            return False
+        st = state.of_result(ro, create=True)
+        stack = stack_input.Stack(obj, mod, render and not early, own=p.own_input)
+        # Vertex groups on the result are for the modifiers below and Apply: with the stack's
+        # geometry as input they are carried where a modifier is below (it may read them),
+        # for render, Apply and Bake, and always without modifiers above.
+        groups = not stack.reads_stack or bool(stack.below) or render or force
+        got = gather.early_inputs(obj, mod, st, stack, groups) if early else \
+            gather.evaluated_inputs(obj, mod, st, p, stack, groups)
+        if got is None:
+            return False
+        st.lattice_gone = None
+        st.deferred = False
+        exact = got.exact
+        key = exact_key = inputs.digest(got.key, groups)
+        now = live.now()
+        if live.positions_only(st, exact_key, exact, render or force, got.settings, now):
+            exact = False
+            key = inputs.digest(key, "positions only")
+            live.schedule_settle(now)
+        frame = frames.scene_frame(p.scene, p.depsgraph)
+        shown = gather.result_frames(obj, got.settings.lattice, frame, stack)
+        if not force and key == st.last_key and write.result_matches(ro.data, st):
+            # Same inputs as the result holds: it is right for this frame too.
+            if st.status_base is not None:
+                statusline.set_ok(obj, mod, st, st.status_base, shown, frame, scene=p.scene)
+            return False
+        rest, pts, interp, weights = got.lattice
+        t0 = time.perf_counter()
+        # weights: the lattice's vertex group; a per-frame value like the points (adding or
+        # removing it changes the lattice's structure key, so that replans).
+        lattice = plans.lattice(st, rest, pts, interp, got.l2o, got.settings.strength, weights)
+        plan_key = plans.ensure_plan(st, got.source, lattice, got.level, got.backend)
+        res = plans.frame(st, lattice, exact)
+        t1 = time.perf_counter()
+        if st.output[0] is not st.plan_key:
+            # A new plan often keeps the output topology (an armature's next pose: the same
+            # knot-plane cuts): then only positions and what lies on the input move.
+            st.output = (st.plan_key, inputs.digest(res.triangles, res.face_index,
+                                                    res.sharp_edges, len(res.positions),
+                                                    got.source.material_index))
+        times = write.write_result(obj, mod, ro, res, got.source, inputs.digest(plan_key), exact,
+                                   st, groups)
+        normals = times.pop("normals")
+        t2 = time.perf_counter()
+        st.last_key = key
+        if not (render or force):   # live editing follows the viewport's results
+            if exact_key != st.exact_key:
+                st.changed_at = now
+            st.exact_key = exact_key
+        used = res.stats.get("device", got.backend) if isinstance(res.stats, dict) \
+            else got.backend
+        tail = (f"{len(res.triangles)} tris, deform {1e3 * (t1 - t0):.1f} ms, "
+                f"write {1e3 * (t2 - t1):.1f} ms ({normals} normals)")
+        statusline.set_ok(obj, mod, st, (f"OK {used}, level {got.level}", tail), shown, frame,
+                      wrote_result=True, scene=p.scene)
+        state.timings[state.uid(ro)] = {
+            "deform_ms": 1e3 * (t1 - t0), "write_ms": 1e3 * (t2 - t1), "normals": normals,
+            "level": got.level, "triangles": len(res.triangles), "stats": res.stats,
+            "early": early, **times}
+        state.counters["computed"] += 1
+        state.counters["early" if early else "post"] += 1
+        stack_input.wrote(obj, mod)
+        return True
+    except stack_input.Deferred:
+        # The stack's geometry is read on the next evaluation (stack_input.defer).
+        if st is not None:
+            st.deferred = True
+        return False
+    except Exception as e:   # a bug or a core error: report it, never take Blender down
+        if early:
+            # Left to the post handler, which reads the same inputs again and reports what
+            # fails. st.last_key only changes after a complete write, so a result left half
+            # written here never matches the next key (or its topology token) and is redone.
+            state.counters["early_errors"] += 1
+            return False
+        message = str(e) if isinstance(e, inputs.SmoothFFDError) else f"{type(e).__name__}: {e}"
+        if st is not None and st.lattice_gone:
+            message += f" (the lattice object {st.lattice_gone!r} was deleted)"
+        statusline.fail(obj, mod, st, message)
+    return False
+
+
+def forget(obj=None, mod=None, ro=None):
+    """Drops the in-memory state (plan, source) of one modifier, or of all. ro: the
+    modifier's result object, when the modifier is already gone (Apply frees it)."""
+    if obj is None and ro is None:
+        state.forget()
+        return
+    if ro is None:
+        ro = objects.result_object(obj, mod, create=False)
+    if ro is not None:
+        state.forget(ro)
+
+
+def last_timing(obj, mod):
+    """The timings of the modifier's last computed result (None: none yet)."""
+    ro = objects.result_object(obj, mod, create=False)
+    return state.timings.get(state.uid(ro)) if ro is not None else None

@@ -1,0 +1,79 @@
+"""The second and third steps of an update: the plan cache (one core Deformer per modifier,
+kept while the source mesh, the lattice's structure, the level and the backend stay) and the
+core's frame on it."""
+import bpy
+import numpy as np
+
+from . import core, state
+
+
+def lattice(st, rest, pts, interp, l2o, strength, weights):
+    """The BlenderLattice of these inputs. Where only the points (and the weights' values)
+    changed since the last one (a point dragged, an animation), that one's with_points: the
+    same values without building and checking the structure again on every update."""
+    key = (np.asarray(rest).tobytes(), tuple(interp), np.asarray(l2o).tobytes(), strength,
+           weights is None)
+    if st.lattice[0] == key:
+        return st.lattice[1].with_points(pts, weights)
+    built = core.smoothffd().BlenderLattice(rest, pts, interpolation=interp,
+                                            lattice_to_object=l2o, strength=strength,
+                                            point_weights=weights)
+    st.lattice = (key, built)
+    return built
+
+
+class _progress:
+    """Blender's progress cursor around a long first plan (big mesh, high level)."""
+
+    def __init__(self, long):
+        wm = getattr(bpy.context, "window_manager", None)
+        self.wm = wm if long and wm is not None and not bpy.app.background else None
+
+    def __enter__(self):
+        if self.wm is not None:
+            self.wm.progress_begin(0, 1)
+
+    def __exit__(self, *exc):
+        if self.wm is not None:
+            self.wm.progress_end()
+
+
+def ensure_plan(st, source, lattice, level, backend):
+    """st.deformer for these inputs: the cached one while its key holds, else a new plan.
+    Returns the plan's key."""
+    plan_key = (source.key, lattice.structure_key(), level, backend)
+    if st.deformer is None or st.plan_key != plan_key:
+        st.deformer = st.result = None
+        st.outs = {}
+        with _progress(len(source.corner_vertices) * level * level > 2_000_000):
+            st.deformer = core.make_deformer(source, lattice, level, backend)
+        st.plan_key = plan_key
+        state.plans_built[0] += 1
+    return plan_key
+
+
+def frame(st, lattice, exact):
+    """The core's frame on st's plan: positions, and the normals where exact.
+
+    out=: overwrite the previous update's arrays in place (no fresh pages each edit);
+    incremental: recompute only what the lattice points that moved since reach (the previous
+    update's arrays are read only here and by the writes). Without exact normals (3.4-4.4
+    viewport: Blender shades the dense mesh from its own geometry, write.write_result) the
+    core computes positions only: the same positions in well under half the time
+    (res.normals is None then)."""
+    chosen = state.LAYOUT or layout(st.deformer)
+    res = st.result = st.outs[chosen] = st.deformer.deform(
+        lattice, out=st.outs.get(chosen), normals=exact, layout=chosen, incremental=True)
+    state.deform_calls["normals" if exact else "positions_only"] += 1
+    return res
+
+
+def layout(deformer):
+    """The cheapest layout for this plan's normals. Where no normal splits, "compact": one
+    normal per render vertex = per output vertex, which Blender takes as per-vertex custom
+    normals (meshio.write_normals), a third to a sixth of the per-corner values. Where normals
+    split (the core's splits_normals), Blender needs one normal a corner, and the core's
+    "corners" layout writes them directly, cheaper than gathering the compact normals through
+    render_triangles in numpy (blender_scenes/bench_layout.py: at level 10, 89 against 184 ms
+    on bpy 5.0)."""
+    return "corners" if deformer.splits_normals else "compact"

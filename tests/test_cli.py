@@ -271,6 +271,26 @@ def test_deform_blender_lattice_and_error_report(core, tmp_path, capsys):
     assert metrics.geometry_error(io.read_obj(out).positions[: len(src)], want).max < 1e-5
 
 
+def test_deform_estimates_the_fit_error(core, tmp_path, capsys):
+    lat = tmp_path / "l.json"
+    rc, _, err = run_main(["make-lattice", "--bbox-of", DATA / "vase.obj", "--twist", 60, "-o", lat], capsys)
+    assert rc == 0, err
+    out = tmp_path / "o.obj"
+    rc, stdout, err = run_main(["deform", DATA / "vase.obj", "--lattice", lat, "-o", out, "--level", 2,
+                                "--estimate-error", "--stats"], capsys)
+    assert rc == 0, err
+    m = re.search(r"fit error at most (\S+) \((\S+) of the mesh's size, face (\d+)\), normals about (\S+) deg", err)
+    assert m, err
+    stats = json.loads(stdout)
+    mesh = io.read_obj_mesh(DATA / "vase.obj")
+    fe, fn = core.Deformer(mesh, lattice_json.load_lattice(lat), level=2, device="cpu").estimate_errors()
+    assert float(m.group(1)) == pytest.approx(float(fe.max()), rel=1e-3)
+    assert int(m.group(3)) == int(np.argmax(fe))
+    assert stats["max_face_error"] == pytest.approx(float(fe.max()), rel=1e-6)
+    assert stats["max_face_normal_error_deg"] == pytest.approx(float(fn.max()), rel=1e-6)
+    assert fe.max() > 0
+
+
 # ---------------------------------------------------------------- one clear line, no traceback
 
 @pytest.mark.parametrize("argv,needle", [

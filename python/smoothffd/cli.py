@@ -202,8 +202,14 @@ def cmd_deform(args, progress):
                                       threads=args.threads)
         note["detail"] = f"level {args.level}, device {deformer.device}"
     with progress.stage("deform") as note:
-        res = deformer.deform()
+        res = deformer.deform(estimate_error=args.estimate_error)
         note["detail"] = f"{len(res.triangles):,} triangles, {len(res.positions):,} vertices"
+        if args.estimate_error:
+            size = float(np.linalg.norm(np.ptp(mesh.positions, axis=0))) or 1.0
+            worst = int(np.argmax(res.face_error))
+            note["detail"] += (f"; fit error at most {res.stats['max_face_error']:.3g} "
+                               f"({res.stats['max_face_error'] / size:.2g} of the mesh's size, "
+                               f"face {worst}), normals about {res.stats['max_face_normal_error_deg']:.3g} deg")
     with progress.stage("write") as note:
         _ensure_parent(args.output)
         header = (f"smoothffd deform {os.path.basename(args.input)} "
@@ -437,6 +443,10 @@ def build_parser():
     d.add_argument("--errors", action="store_true",
                    help="also report geometry/normal/volume errors against exact FFD of the flat "
                         "input (meaningful for flat-faced meshes, as in the paper's cube test)")
+    d.add_argument("--estimate-error", action="store_true",
+                   help="estimate each face's fit error (a bound on the distance from the exact "
+                        "FFD of the flat face, and the normals' angle) and report the largest; "
+                        "with --stats, in the JSON too")
     d.add_argument("--quiet", "-q", action="store_true", help="no progress lines")
     d.set_defaults(func=cmd_deform)
 

@@ -58,7 +58,7 @@ run)
         echo "PTX JIT: $(tail -1 "$OUT/pytest_ptx_jit.txt")"
     fi
     w1() {  # name site bench-script
-        (cd /tmp && PYTHONPATH="$2" python3 "$3" --quick --out "$OUT/w1-$1.json") > "$OUT/w1-$1.txt" 2>&1
+        (cd /tmp && PYTHONPATH="$2" python3 "$3" --quick --iters 100 --out "$OUT/w1-$1.json") > "$OUT/w1-$1.txt" 2>&1
         echo "== W1 ($1)"; grep -A6 "=== summary" "$OUT/w1-$1.txt" | grep -E "^W1|summary"
     }
     if ls .devwheel/baseline/*.whl >/dev/null 2>&1; then

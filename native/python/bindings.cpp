@@ -420,7 +420,7 @@ PYBIND11_MODULE(_core, m) {
            "of and its corners' points there; output triangle t belongs to patch t // level**2")
       .def("vertex_sources",
            [](const Plan& p) {
-             py::array_t<int> tri({(py::ssize_t)p.output_vertices});
+             py::array_t<int> tri((py::ssize_t)p.output_vertices);
              py::array_t<float> bary({(py::ssize_t)p.output_vertices, (py::ssize_t)3});
              int* t = tri.mutable_data();
              float* b = bary.mutable_data();
@@ -478,7 +478,7 @@ PYBIND11_MODULE(_core, m) {
       "estimate_fit_errors",
       [](std::shared_ptr<Plan> plan, Arr<float> D, int threads) {
         check_values(*plan, D);
-        py::array_t<float> geometry({(py::ssize_t)plan->patches}), normal({(py::ssize_t)plan->patches});
+        py::array_t<float> geometry((py::ssize_t)plan->patches), normal((py::ssize_t)plan->patches);
         const float* d = D.data();
         float* g = geometry.mutable_data();
         float* n = normal.mutable_data();

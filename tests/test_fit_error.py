@@ -107,7 +107,7 @@ def _fit_operator(n):
     return np.linalg.solve(kkt, rhs)[:10], np.vstack([grid, cons])
 
 
-def _true_fit_errors(mesh, lattice, plan, dense=16):
+def _true_fit_errors(mesh, lattice, plan, dense=12):
     """Per face: max over a dense grid of |fitted cubic - exact FFD| of each patch's flat piece."""
     n = sum(lattice.degree)
     op, cols = _fit_operator(n)
@@ -137,12 +137,12 @@ def _one_box(mesh, degree, seed, amount=0.12):
 
 
 # Measured (estimate / true error per face above 3e-7 of the diagonal, about 5x the float
-# rounding): medians 1.33-1.58 for the meshes and degrees below, every face bounded (the
-# smallest ratio 1.23). Bound about 15% above.
-SMOOTH_MEDIAN = 1.85
+# rounding; the truth sampled at 91 points a patch): medians 1.43-1.75 for the meshes and
+# degrees below, every face bounded. Bound about 15% above.
+SMOOTH_MEDIAN = 2.0
 
 
-@pytest.mark.parametrize("name", ["uv_sphere", "torus", "suzanne_subsurf", "goblet"])
+@pytest.mark.parametrize("name", ["uv_sphere", "torus", "goblet", "figure"])
 @pytest.mark.parametrize("degree", [(2, 2, 2), (1, 2, 3), (3, 3, 3)])
 def test_smooth_meshes_in_one_knot_box(name, degree):
     mesh = real.load(name)

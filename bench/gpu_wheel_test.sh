@@ -63,9 +63,9 @@ run)
     }
     if ls .devwheel/baseline/*.whl >/dev/null 2>&1; then
         python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site-base .devwheel/baseline/*.whl || exit 1
-        w1 baseline-1 /tmp/site-base .devwheel/baseline/bench_gpu.py
+        w1 baseline-1 /tmp/site-base "$ROOT/.devwheel/baseline/bench_gpu.py"
         w1 new /tmp/site "$ROOT/bench/bench_gpu.py"
-        w1 baseline-2 /tmp/site-base .devwheel/baseline/bench_gpu.py
+        w1 baseline-2 /tmp/site-base "$ROOT/.devwheel/baseline/bench_gpu.py"
     else
         w1 new /tmp/site "$ROOT/bench/bench_gpu.py"
     fi ;;

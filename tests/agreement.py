@@ -6,8 +6,10 @@ read next to what the product measures.
 
 import numpy as np
 
-# Bounds: positions as a fraction of the lattice's size, normals in radians.
-POSITIONS = 1e-5
+# Bounds: positions as a fraction of the lattice's size, normals in radians. Measured over the
+# GPU suites (an H200, CUDA 13.0, the shipped cp312 wheel): positions 6.3e-7, normals 4.4e-5
+# (float rounding in different orders). The bounds are about 3x and 2.3x that.
+POSITIONS = 2e-6
 NORMALS = 1e-4
 
 WORST = {}

@@ -11,6 +11,7 @@ Where it comes from, without any sys.path edit:
 The add-on asks the core for its limits and names (MAX_LEVEL, DEVICES) and its checks
 (a singular matrix) instead of restating them: parse_level, parse_backend, lattice_to_object.
 """
+import platform
 import sys
 
 import numpy as np
@@ -33,8 +34,8 @@ def smoothffd():
                 raise ImportError(
                     "cannot import the smoothffd core (" + "; ".join(errors) + "). Install the "
                     f"Smooth FFD package made for this Blender (Python "
-                    f"{sys.version_info[0]}.{sys.version_info[1]}, Linux x86-64): see "
-                    "docs/packaging.md") from e2
+                    f"{sys.version_info[0]}.{sys.version_info[1]}, {platform.system()} "
+                    f"{platform.machine()})") from e2
         state.core_module[0] = m
     return state.core_module[0]
 

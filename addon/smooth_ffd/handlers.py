@@ -275,8 +275,14 @@ def on_frame_change(scene, depsgraph=None):
 @persistent
 def on_load(*_args):
     state.forget_session()   # in-memory plans and reports belong to the previous file
-    for _obj, mod in smooth_ffd_modifiers():
-        nodegroup.migrate(mod)   # older layouts -> this Blender's (menu, frame ranges)
+    for obj, mod in smooth_ffd_modifiers():
+        try:
+            nodegroup.migrate(mod)   # older layouts -> this Blender's (menu, frame ranges)
+        except ImportError as e:
+            # No core for this Blender: the group stays as saved (its limits are the core's),
+            # and the status says what to install.
+            statusline.fail(obj, mod, None, str(e))
+            continue
         # A lattice saved in no collection was kept only by Smooth FFD inputs (older add-ons
         # held deleted lattices): count it as wanted once, so that it is let go of.
         try:

@@ -67,3 +67,22 @@ def test_digest(inputs):
     a = np.arange(6, dtype=np.float32)
     assert inputs.digest(a, 1) == inputs.digest(a.copy(), 1)
     assert inputs.digest(a, 1) != inputs.digest(a.astype(np.float64), 1)
+
+
+def test_missing_core_says_what_to_install(addon_core, monkeypatch):
+    """Without the core (no bundled copy, no installed package) the add-on's import error
+    names this Python and this platform, so the user knows which package to get."""
+    import platform
+    import sys
+
+    core, state = addon_core.core, addon_core.state
+    monkeypatch.setitem(sys.modules, "smoothffd", None)   # `import smoothffd` raises ImportError
+    loaded, state.core_module[0] = state.core_module[0], None
+    try:
+        with pytest.raises(ImportError) as e:
+            core.smoothffd()
+    finally:
+        state.core_module[0] = loaded
+    msg = str(e.value)
+    assert "cannot import the smoothffd core" in msg
+    assert f"Python {sys.version_info[0]}.{sys.version_info[1]}, {platform.system()} {platform.machine()}" in msg

@@ -42,3 +42,11 @@ def schedule_settle(at):
 def wait():
     """Seconds until the settle update is due (<= 0: now)."""
     return state.settle_after[0] - now()
+
+
+def playing():
+    """Whether an animation is playing in one of the windows (never in background mode)."""
+    wm = getattr(bpy.context, "window_manager", None)
+    if wm is None or bpy.app.background:
+        return False
+    return any(w.screen is not None and w.screen.is_animation_playing for w in wm.windows)

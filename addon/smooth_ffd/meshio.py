@@ -114,6 +114,7 @@ def _groups(num_vertices, num_groups, dvert):
 
 SOURCE_FACE_ATTRIBUTE = "smooth_ffd_source_face"
 REST_ATTRIBUTE = "smooth_ffd_rest_position"
+FIT_ERROR_ATTRIBUTE = "smooth_ffd_fit_error"
 
 
 # --- result mesh ------------------------------------------------------------------------------
@@ -149,6 +150,22 @@ def write_topology(mesh, res, source, materials):
     # 3.4-4.0: auto smooth makes Blender compute split normals for the whole dense mesh on
     # every evaluation; only needed with sharp edges (custom normals turn it on themselves).
     compat.enable_split_normals(mesh, bool(flags.any()))
+
+
+def write_fit_error(mesh, res, face_error):
+    """The smooth_ffd_fit_error face attribute: each result triangle's bound on the distance
+    from the exact FFD of its input face (that face's, Deformer.estimate_errors), for viewing
+    (spreadsheet, an Attribute node). face_error None (this update did not estimate it):
+    removed, so that no value of other control points stays."""
+    attr = mesh.attributes.get(FIT_ERROR_ATTRIBUTE)
+    if attr is not None and (face_error is None or attr.domain != 'FACE' or attr.data_type != 'FLOAT'):
+        mesh.attributes.remove(attr)
+        attr = None
+    if face_error is None:
+        return
+    if attr is None:
+        attr = mesh.attributes.new(FIT_ERROR_ATTRIBUTE, 'FLOAT', 'FACE')
+    attr.data.foreach_set("value", np.ascontiguousarray(np.asarray(face_error)[res.face_index], np.float32))
 
 
 def write_rest_positions(mesh, res):

@@ -64,6 +64,9 @@ def update_modifier(obj, mod, p):
         lattice = plans.lattice(st, rest, pts, interp, got.l2o, got.settings.strength, weights)
         plan_key = plans.ensure_plan(st, got.source, lattice, got.level, got.backend)
         res = plans.frame(st, lattice, exact)
+        # The fit error bound (a face attribute, its maximum in the status): with exact
+        # results, not while an animation plays (it costs about one more CPU frame).
+        fit_error = plans.fit_errors(st) if exact and (render or force or not live.playing()) else None
         t1 = time.perf_counter()
         if st.output[0] is not st.plan_key:
             # A new plan often keeps the output topology (an armature's next pose: the same
@@ -72,7 +75,7 @@ def update_modifier(obj, mod, p):
                                                     res.sharp_edges, len(res.positions),
                                                     got.source.material_index))
         times = write.write_result(obj, mod, ro, res, got.source, inputs.digest(plan_key), exact,
-                                   st, groups)
+                                   st, groups, fit_error)
         normals = times.pop("normals")
         t2 = time.perf_counter()
         st.last_key = key
@@ -84,11 +87,14 @@ def update_modifier(obj, mod, p):
             else got.backend
         tail = (f"{len(res.triangles)} tris, deform {1e3 * (t1 - t0):.1f} ms, "
                 f"write {1e3 * (t2 - t1):.1f} ms ({normals} normals)")
+        if fit_error is not None:
+            tail += f", fit error \u2264 {float(fit_error.max(initial=0.0)):.3g}"
         statusline.set_ok(obj, mod, st, (f"OK {used}, level {got.level}", tail), shown, frame,
                       wrote_result=True, scene=p.scene)
         state.timings[state.uid(ro)] = {
             "deform_ms": 1e3 * (t1 - t0), "write_ms": 1e3 * (t2 - t1), "normals": normals,
             "level": got.level, "triangles": len(res.triangles), "stats": res.stats,
+            "fit_error": None if fit_error is None else float(fit_error.max(initial=0.0)),
             "early": early, **times}
         state.counters["computed"] += 1
         state.counters["early" if early else "post"] += 1

@@ -77,3 +77,11 @@ def layout(deformer):
     render_triangles in numpy (blender_scenes/bench_layout.py: at level 10, 89 against 184 ms
     on bpy 5.0)."""
     return "corners" if deformer.splits_normals else "compact"
+
+
+def fit_errors(st):
+    """Per input face, the bound on the distance between its fitted patches and the exact FFD
+    of the face (object units), for the lattice of st's last frame (Deformer.estimate_errors:
+    about one more CPU frame)."""
+    face_error, _normal = st.deformer.estimate_errors()
+    return face_error

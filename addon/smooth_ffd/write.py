@@ -16,9 +16,10 @@ def _materials(obj):
         list(obj.data.materials)
 
 
-def write_result(obj, mod, ro, res, source, topology_token, exact, st, groups=True):
+def write_result(obj, mod, ro, res, source, topology_token, exact, st, groups=True, fit_error=None):
     """Writes res into the result mesh; returns timings (ms) and the normals path used.
-    groups: carry the vertex groups (else the result has none)."""
+    groups: carry the vertex groups (else the result has none). fit_error: per input face
+    (plans.fit_errors), written as the result's face attribute; None removes it."""
     mesh = ro.data
     t0 = time.perf_counter()
     mode = "exact" if exact else "fast"
@@ -33,7 +34,7 @@ def write_result(obj, mod, ro, res, source, topology_token, exact, st, groups=Tr
     if not rebuild and mode == "fast" and mesh.get(state.NORMALS_KEY) == "fast" \
             and mesh.get(state.TOPOLOGY_KEY) == topology_token \
             and mesh.get(state.EXTRAS_KEY) == extras_token and objects.sends_points(mod) \
-            and ro.users == 1:
+            and ro.users == 1 and meshio.FIT_ERROR_ATTRIBUTE not in mesh.attributes:
         # Only the positions change: before 3.6 a write to the result mesh makes the
         # depsgraph copy all of it again, the points object is vertices only (nodegroup).
         # The result mesh gets them too, untagged: it stays the result for everyone who
@@ -79,6 +80,7 @@ def write_result(obj, mod, ro, res, source, topology_token, exact, st, groups=Tr
         compat.remove_custom_normals(mesh)
         path = "from geometry"
     mesh[state.NORMALS_KEY] = mode
+    meshio.write_fit_error(mesh, res, fit_error)
     t2 = time.perf_counter()
     mesh.update()
     objects.empty_points(obj, mod, ro)

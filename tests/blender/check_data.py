@@ -409,10 +409,76 @@ def test_modifiers_above():
             smooth_ffd.status(mod))
 
 
+def fit_error_values(mesh):
+    a = mesh.attributes.get(meshio.FIT_ERROR_ATTRIBUTE)
+    if a is None:
+        return None
+    out = np.empty(len(a.data), dtype=np.float32)
+    a.data.foreach_get("value", out)
+    return a.domain, a.data_type, out
+
+
+def test_fit_error_attribute():
+    """The fit error bound on the result: a face attribute whose value bounds, over each input
+    face, the output's distance from Blender's own Lattice modifier at the output's rest
+    points (the exact FFD of the flat input: the cube's faces are flat, so the output is the
+    fitted patches themselves); its maximum in the status; written with exact results (render;
+    the viewport where it shows exact normals), and no stale value after other updates."""
+    T.clear()
+    obj = T.make_mesh("cube")
+    lat = T.make_lattice(jitter=0.25, seed=11)
+    mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=4, render_level=4)
+    T.update()
+    smooth_ffd.update(obj, render=True)
+    ro = T.objects.result_object(obj, mod, create=False)
+    got = fit_error_values(ro.data)
+    status = smooth_ffd.status(mod)
+    T.check("render update: the fit error is a float face attribute of the result",
+            got is not None and got[0] == 'FACE' and got[1] == 'FLOAT' and len(got[2]) == len(ro.data.polygons),
+            str(got and got[:2]))
+    if got is None:
+        return
+    err = got[2]
+    T.check("the status shows the largest bound", f"fit error \u2264 {float(err.max()):.3g}" in status, status)
+    size = T.lattice_size(obj, lat)
+    pos = T.positions(ro.data)
+    tris = T.triangles(ro.data)
+    face = face_attr(ro.data)
+    rest = T.point_attribute(ro.data, meshio.REST_ATTRIBUTE)
+    twin = T.points_twin(rest, obj, lat)   # evaluating it may update the result (viewport)
+    T.update()
+    exact = T.positions(T.evaluated_mesh(twin))
+    bpy.data.objects.remove(twin)
+    dist = np.linalg.norm(pos - exact, axis=1)[tris].max(axis=1)
+    true_face = np.zeros(face.max() + 1)
+    bound_face = np.zeros(face.max() + 1)
+    np.maximum.at(true_face, face, dist)
+    np.maximum.at(bound_face, face, err)
+    T.check("each triangle's bound is its input face's", bool(np.all(err == bound_face[face])))
+    T.check("each face's distance from the exact FFD is within its bound",
+            bool(np.all(true_face <= bound_face * (1 + 1e-3) + 1e-6 * size)),
+            f"worst excess {float(np.max(true_face - bound_face)):.3g}, bound max {float(err.max()):.3g}")
+    ratio = bound_face / np.maximum(true_face, 1e-12)
+    T.check("the bound is a close one (every face within 1-3x of its distance)",
+            bool(np.all((ratio >= 1.0) & (ratio < 3.0))), str(np.round(ratio, 2)))
+    # A viewport update: on 3.4-4.4 it computes positions only (no estimate) unless Exact
+    # Normals is on; then no value of the render update may stay behind.
+    lat.data.points[0].co_deform = np.array(lat.data.points[0].co_deform) + 0.1
+    T.update()
+    smooth_ffd.update(obj, force=True)
+    exact_update = ro.data.get(T.state.NORMALS_KEY) == "exact"
+    got = fit_error_values(ro.data)
+    T.check("a viewport update: the attribute where it was estimated (exact results), else none",
+            (got is not None) == exact_update, f"exact {exact_update}, attribute {got is not None}")
+    T.check("the modified object carries what the result has",
+            (meshio.FIT_ERROR_ATTRIBUTE in T.evaluated_mesh(obj).attributes) == exact_update,
+            str(list(T.evaluated_mesh(obj).attributes.keys())))
+
+
 def main():
     T.setup()
     for fn in (test_vertex_groups, test_uv_maps, test_carry_matches_core, test_extras_follow_edits,
-               test_no_extras_no_cost, test_modifiers_above):
+               test_no_extras_no_cost, test_modifiers_above, test_fit_error_attribute):
         T.run(fn.__name__, fn)
     T.finish()
 

@@ -297,14 +297,28 @@ class Deformer:
         for the mesh there (or too strongly bent): smaller knot spans, or a finer mesh.
         """
         with self._lock:
-            lat = self.lattice if lattice_or_points is None else lattice_or_points
-            if not isinstance(lat, _Lattice):
-                lat = self.lattice.with_points(lat)
-            values = _control_values_f32(lat)
-            if lat.structure_key() != self._key:
-                self._plan_for(lat)
-            self.lattice = lat
+            values = self._take(lattice_or_points)
             return self._face_errors(values)
+
+    def _take(self, lattice_or_points):
+        """Makes a lattice, or new points for the planned one (None: the current lattice), the
+        current lattice, replanning when its structure differs; returns its control values
+        for the core. Checked before any state changes: a rejected call keeps them."""
+        lat = lattice_or_points
+        if lat is None:
+            lat = self.lattice
+        elif not isinstance(lat, _Lattice):
+            shape = tuple(np.shape(lat))
+            want = self.lattice.shape + (3,)
+            if shape != want:
+                raise ValueError(f"control_points/points: expected shape {want} like the planned "
+                                 f"lattice, got {shape}")
+            lat = self.lattice.with_points(lat)
+        values = _control_values_f32(lat)
+        if lat.structure_key() != self._key:
+            self._plan_for(lat)
+        self.lattice = lat
+        return values
 
     def _face_errors(self, values):
         geometry, normal = _core.estimate_fit_errors(self.plan, values, self.threads)
@@ -317,20 +331,7 @@ class Deformer:
 
     def _deform(self, lattice_or_points, out=None, normals=True, layout="corners",
                 incremental=False):
-        lat = lattice_or_points
-        if lat is None:
-            lat = self.lattice
-        elif not isinstance(lat, _Lattice):
-            shape = tuple(np.shape(lat))
-            want = self.lattice.shape + (3,)
-            if shape != want:
-                raise ValueError(f"control_points/points: expected shape {want} like the planned "
-                                 f"lattice, got {shape}")
-            lat = self.lattice.with_points(lat)
-        values = _control_values_f32(lat)   # before any state changes: a rejected call keeps them
-        if lat.structure_key() != self._key:
-            self._plan_for(lat)
-        self.lattice = lat
+        values = self._take(lattice_or_points)
         t0 = time.perf_counter()
         compact = layout == "compact"
         nname = "normals" if compact else "corner_normals"
@@ -411,13 +412,7 @@ class Deformer:
         if self.device != "cuda":
             raise RuntimeError(f"deform_on_device: this Deformer runs on the CPU ({self.device_message})")
         with self._lock:
-            lat = self.lattice if lattice_or_points is None else lattice_or_points
-            if not isinstance(lat, _Lattice):
-                lat = self.lattice.with_points(lat)
-            values = _control_values_f32(lat)
-            if lat.structure_key() != self._key:
-                self._plan_for(lat)
-            self.lattice = lat
+            values = self._take(lattice_or_points)
             return dict(self._evaluator.evaluate_device(values))
 
 

@@ -19,6 +19,7 @@
 #include "smoothffd/plan/plan.hpp"
 #include "smoothffd/plan/sources.hpp"
 #include "smoothffd/eval/fit_error.hpp"
+#include "smoothffd/eval/adaptive.hpp"
 // The CUDA backend, loaded from libsmoothffd_cuda.so when first asked for: the module needs no
 // CUDA library (cuda_proxy/cuda_proxy.hpp).
 #include "smoothffd/cuda_proxy/cuda_proxy.hpp"
@@ -492,6 +493,78 @@ PYBIND11_MODULE(_core, m) {
       "(geometry (P,), normal degrees (P,)): per patch, a bound on the distance between the "
       "fitted cubic patch and the exact FFD of its flat piece, and an estimate of the normal "
       "patch's angle from the deformed normal field (eval/fit_error.hpp)");
+
+  m.def(
+      "adaptive_frame",
+      [](std::shared_ptr<Plan> plan, Arr<float> D, double tolerance, int max_level, int threads, bool normals,
+         std::optional<Arr<float>> corner_uv, bool details, std::optional<Arr<int>> min_edge_segments,
+         std::optional<Arr<int>> min_patch_level, bool counts_only) {
+        check_values(*plan, D);
+        if (corner_uv && corner_uv->size() != 2 * (py::ssize_t)plan->input_corners)
+          throw std::invalid_argument("uvs: expected (C, 2) corner UVs of the planned mesh");
+        AdaptiveOptions opt;
+        opt.tolerance = tolerance;
+        opt.max_level = max_level;
+        opt.threads = threads;
+        opt.normals = normals;
+        opt.details = details;
+        opt.counts_only = counts_only;
+        if (min_edge_segments.has_value() != min_patch_level.has_value())
+          throw std::invalid_argument("hold: expected both edge_segments and patch_level");
+        if (min_edge_segments) {
+          if (min_edge_segments->size() != (py::ssize_t)plan->edges || min_patch_level->size() != (py::ssize_t)plan->patches)
+            throw std::invalid_argument("hold: expected edge_segments (" + std::to_string(plan->edges) +
+                                        ",) and patch_level (" + std::to_string(plan->patches) + ",) of this plan");
+          opt.min_edge_segments = min_edge_segments->data();
+          opt.min_patch_level = min_patch_level->data();
+        }
+        const float* d = D.data();
+        const float* uv = corner_uv ? corner_uv->data() : nullptr;
+        AdaptiveMesh a = interruptible([&] { return adaptive_frame(*plan, d, uv, opt); });
+        py::dict r;
+        r["edge_segments"] = copy_out(a.edge_segments, {(py::ssize_t)a.edge_segments.size()});
+        r["patch_level"] = copy_out(a.patch_level, {(py::ssize_t)a.patch_level.size()});
+        r["max_bound"] = a.max_bound;
+        r["capped"] = a.capped;
+        r["stage_ms"] = times_dict(a.times);
+        if (counts_only) return r;
+        const py::ssize_t N = (py::ssize_t)a.positions.size() / 3, T = (py::ssize_t)a.face_index.size();
+        r["positions"] = copy_out(a.positions, {N, 3});
+        r["triangles"] = copy_out(a.triangles, {T, 3});
+        r["face_index"] = copy_out(a.face_index, {T});
+        r["triangle_patch"] = copy_out(a.triangle_patch, {T});
+        r["corner_normals"] = normals ? py::object(copy_out(a.corner_normals, {T, 3, 3})) : py::object(py::none());
+        r["uvs"] = uv ? py::object(copy_out(a.uvs, {T, 3, 2})) : py::object(py::none());
+        r["rest_positions"] = copy_out(a.rest_positions, {N, 3});
+        r["sharp_edges"] = copy_out(a.sharp_edges, {(py::ssize_t)a.sharp_edges.size() / 2, 2});
+        r["patch_uniform"] = copy_out(std::vector<uint8_t>(a.patch_uniform.begin(), a.patch_uniform.end()),
+                                      {(py::ssize_t)a.patch_uniform.size()});
+        if (details) {
+          r["patch_control"] = copy_out(a.patch_control, {(py::ssize_t)plan->patches, 10, 3});
+          r["corner_bary"] = copy_out(a.corner_bary, {T, 3, 3});
+        }
+        return r;
+      },
+      py::arg("plan").none(false), py::arg("values"), py::arg("tolerance"), py::arg("max_level"),
+      py::arg("threads") = 0, py::arg("normals") = true, py::arg("uvs") = py::none(),
+      py::arg("details") = false, py::arg("min_edge_segments") = py::none(), py::arg("min_patch_level") = py::none(),
+      py::arg("counts_only") = false,
+      "one adaptive frame (eval/adaptive.hpp): a dict of the mesh's arrays (positions, triangles, "
+      "face_index, triangle_patch, corner_normals, uvs, rest_positions, sharp_edges), the counts "
+      "(edge_segments, patch_level, patch_uniform), max_bound, capped and stage_ms");
+  m.def(
+      "adaptive_bounds",
+      [](Arr<float> cp, Arr<double> st, int m, Arr<float> curve, int n) {
+        if (cp.size() != 30 || st.size() != 6 || curve.size() != 12)
+          throw std::invalid_argument("adaptive_bounds: expected (10, 3), (3, 2), m, (4, 3), n");
+        double t[3][2];
+        for (int i = 0; i < 6; ++i) t[i / 2][i % 2] = st.data()[i];
+        const float* c = curve.data();
+        return py::make_tuple(triangle_bound(cp.data(), t), uniform_bound(cp.data(), m),
+                              edge_bound(c, c + 3, c + 6, c + 9, n));
+      },
+      py::arg("control_points"), py::arg("triangle"), py::arg("m"), py::arg("curve"), py::arg("n"),
+      "(triangle_bound, uniform_bound, edge_bound) of eval/adaptive.hpp (tests)");
 
   m.def("cpu_isa", &cpu_isa,
         "the CPU evaluator's default per-frame code path on this CPU: on x86-64 'x86-64-v3' "

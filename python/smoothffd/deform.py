@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import _core
-from ._validate import flag, positive_int
+from ._validate import finite_float, flag, positive_int
 from .lattice import BlenderLattice, BSplineLattice, _Lattice
 from .mesh import Mesh
 
@@ -37,6 +37,9 @@ class Result:
     # deform(estimate_error=True), else None: per input face, see Deformer.estimate_errors
     face_error: object = None          # (F,) float32, object units
     face_normal_error: object = None   # (F,) float32, degrees
+    # Adaptive results (Deformer's tolerance), else None: the counts this frame used,
+    # {"edge_segments": (E,) int32, "patch_level": (P,) int32}; see Deformer.tessellation_counts
+    counts: object = None
 
 
 @dataclass
@@ -147,9 +150,17 @@ class Deformer:
 
     device: "auto" (CUDA when a usable GPU exists, else the CPU), "cpu" or "cuda" (raises
     RuntimeError when no usable GPU). threads: CPU threads (0: all cores).
+
+    tolerance: None (every patch tessellated at `level`, L^2 triangles) or a distance in object
+    units: adaptive tessellation, each patch edge and interior as fine as needed for every
+    output triangle to be within `tolerance` of the smooth patch it approximates, recomputed
+    each frame (docs/algorithm.md, "Adaptive tessellation"); at most `max_level` segments an
+    edge. `level` is then unused. Adaptive frames run on the CPU (device "auto" chooses it;
+    "cuda" is refused) and give normals per corner (layout "corners").
     """
 
-    def __init__(self, mesh, lattice, level=10, device="auto", threads=0):
+    def __init__(self, mesh, lattice, level=10, device="auto", threads=0, tolerance=None,
+                 max_level=MAX_LEVEL):
         if not isinstance(mesh, Mesh):
             raise TypeError(f"mesh: expected smoothffd.Mesh, got {type(mesh).__name__}")
         if not isinstance(lattice, _Lattice):
@@ -159,6 +170,17 @@ class Deformer:
         if device not in DEVICES:
             raise ValueError(f"device: expected one of {DEVICES}, got {device!r}")
         self.threads = positive_int(threads, "threads", 0, 4096)
+        self.tolerance = None
+        if tolerance is not None:
+            self.tolerance = finite_float(tolerance, "tolerance")
+            if not self.tolerance > 0:
+                raise ValueError(f"tolerance: expected a positive distance, got {self.tolerance!r}")
+            if device == "cuda":
+                raise ValueError("tolerance: adaptive tessellation runs on the CPU only; use device='cpu' "
+                                 "or 'auto'")
+            device = "cpu"
+            self.level = 1  # the plan's uniform tables are not used
+        self.max_level = positive_int(max_level, "max_level", 1, MAX_LEVEL)
         self.mesh = mesh
         big = float(np.abs(mesh.positions).max(initial=0.0))
         if not big <= _F32_LIMIT:
@@ -230,7 +252,7 @@ class Deformer:
         return self._static
 
     def deform(self, lattice_or_points=None, out=None, normals=True, layout="corners",
-               incremental=False, estimate_error=False):
+               incremental=False, estimate_error=False, hold=None):
         """Deform with new control values.
 
         Pass a lattice (replanned automatically if its structure differs from the planned
@@ -267,13 +289,27 @@ class Deformer:
         estimate_error: also fill `face_error` and `face_normal_error` (estimate_errors) and
         put their maxima in `stats` ("max_face_error", "max_face_normal_error_deg"). Costs
         about one more CPU pass over the samples, on either backend.
+
+        hold (adaptive Deformers only): counts to hold, as `tessellation_counts` returns them
+        (the largest over several frames): every frame deformed with the same `hold` gets the
+        same topology (a motion-blur shutter, a cache over a frame range), each edge and patch
+        at least as fine as held and no finer than its own need; `stats["tolerance_met"]` says
+        whether the held counts met the tolerance here.
         """
         if layout not in _LAYOUTS:
             raise ValueError(f"layout: expected one of {_LAYOUTS}, got {layout!r}")
+        if self.tolerance is not None and layout != "corners":
+            raise ValueError("layout: adaptive tessellation (tolerance) gives normals per corner; "
+                             "use layout='corners'")
         estimate_error = flag(estimate_error, "estimate_error")
+        if hold is not None and self.tolerance is None:
+            raise ValueError("hold: only adaptive Deformers (tolerance=...) have counts to hold")
         with self._lock:
-            res = self._deform(lattice_or_points, out, flag(normals, "normals"), layout,
-                               flag(incremental, "incremental"))
+            if hold is not None:
+                res = self._deform_adaptive(lattice_or_points, flag(normals, "normals"), hold)
+            else:
+                res = self._deform(lattice_or_points, out, flag(normals, "normals"), layout,
+                                   flag(incremental, "incremental"))
             if estimate_error:
                 t0 = time.perf_counter()
                 res.face_error, res.face_normal_error = self._face_errors(_control_values_f32(self.lattice))
@@ -331,6 +367,8 @@ class Deformer:
 
     def _deform(self, lattice_or_points, out=None, normals=True, layout="corners",
                 incremental=False):
+        if self.tolerance is not None:
+            return self._deform_adaptive(lattice_or_points, normals)
         values = self._take(lattice_or_points)
         t0 = time.perf_counter()
         compact = layout == "compact"
@@ -386,6 +424,61 @@ class Deformer:
                       rest_positions=s["rest_positions"], sharp_edges=s["sharp_edges"],
                       stats=stats)
 
+    def tessellation_counts(self, lattice_or_points=None, hold=None):
+        """The adaptive counts of a frame without computing its mesh: {"edge_segments": (E,),
+        "patch_level": (P,)} int32 (E sub-edges, P patches of the plan). np.maximum of two
+        frames' counts, passed as `deform(hold=...)`, gives both frames one topology."""
+        if self.tolerance is None:
+            raise ValueError("tessellation_counts: only adaptive Deformers (tolerance=...) have counts")
+        with self._lock:
+            values = self._take(lattice_or_points)
+            r = _core.adaptive_frame(self.plan, values, self.tolerance, self.max_level, self.threads,
+                                     False, None, False, *self._hold_arrays(hold), counts_only=True)
+            return {"edge_segments": r["edge_segments"], "patch_level": r["patch_level"]}
+
+    def _hold_arrays(self, hold):
+        if hold is None:
+            return None, None
+        if not isinstance(hold, dict) or set(hold) != {"edge_segments", "patch_level"}:
+            raise TypeError("hold: expected a dict with 'edge_segments' and 'patch_level' "
+                            "(Deformer.tessellation_counts or Result.counts)")
+        p = self.plan
+        out = []
+        for name, n in (("edge_segments", p.edges), ("patch_level", p.patches)):
+            a = np.asarray(hold[name])
+            if a.shape != (n,) or a.dtype.kind not in "iu":
+                raise ValueError(f"hold[{name!r}]: expected ({n},) integers for this plan, got "
+                                 f"{a.shape} {a.dtype}")
+            out.append(np.ascontiguousarray(np.clip(a, 1, MAX_LEVEL), dtype=np.int32))
+        return out
+
+    def _deform_adaptive(self, lattice_or_points, normals, hold=None):
+        """One adaptive frame (Deformer's tolerance): a Result whose topology follows the
+        deformed patches; `out` and `incremental` do not apply (each frame is new)."""
+        values = self._take(lattice_or_points)
+        held = self._hold_arrays(hold)
+        t0 = time.perf_counter()
+        m = self.mesh
+        uvs = None if m.uvs is None else np.ascontiguousarray(m.uvs, dtype=np.float32)
+        r = _core.adaptive_frame(self.plan, values, self.tolerance, self.max_level, self.threads,
+                                 normals, uvs, False, *held)
+        total = (time.perf_counter() - t0) * 1e3
+        p = self.plan
+        stats = dict(device="cpu", device_message=self.device_message, plan_ms=self.plan_ms,
+                     deform_ms=total, stage_ms=dict(r["stage_ms"]), input_vertices=p.input_vertices,
+                     patches=p.patches, sub_vertices=p.sub_vertices,
+                     output_vertices=len(r["positions"]), output_triangles=len(r["triangles"]),
+                     fit_degree=p.fit_degree, level=None, layout="corners",
+                     tolerance=self.tolerance, max_level=self.max_level,
+                     max_tessellation_bound=float(r["max_bound"]), tolerance_met=r["capped"] == 0,
+                     capped=int(r["capped"]), max_edge_segments=int(r["edge_segments"].max(initial=0)),
+                     max_patch_level=int(r["patch_level"].max(initial=0)),
+                     changed_points=None, recomputed_patches=p.patches)
+        return Result(positions=r["positions"], triangles=r["triangles"],
+                      corner_normals=r["corner_normals"], uvs=r["uvs"], face_index=r["face_index"],
+                      rest_positions=r["rest_positions"], sharp_edges=r["sharp_edges"], stats=stats,
+                      counts={"edge_segments": r["edge_segments"], "patch_level": r["patch_level"]})
+
     def _evaluate(self, values, bufs, normals, compact=False, incremental=False):
         """(positions, normals or None, stage times) from the evaluator."""
         kw = dict(bufs, incremental=incremental)
@@ -416,7 +509,9 @@ class Deformer:
             return dict(self._evaluator.evaluate_device(values))
 
 
-def deform(mesh, lattice, level=10, device="auto", normals=True, layout="corners", estimate_error=False):
+def deform(mesh, lattice, level=10, device="auto", normals=True, layout="corners", estimate_error=False,
+           tolerance=None, max_level=MAX_LEVEL):
     """One-shot smooth FFD of `mesh` by `lattice`; see `Deformer` and docs/api.md."""
-    return Deformer(mesh, lattice, level=level, device=device).deform(normals=normals, layout=layout,
-                                                                     estimate_error=estimate_error)
+    return Deformer(mesh, lattice, level=level, device=device, tolerance=tolerance,
+                    max_level=max_level).deform(normals=normals, layout=layout,
+                                                estimate_error=estimate_error)

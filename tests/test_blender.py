@@ -242,7 +242,8 @@ def test_update_timing_printed(runner, blender_env):
 @pytest.mark.parametrize("script", ["check_parity.py", "check_normals.py", "check_live.py",
                                     "check_render.py", "check_robustness.py", "check_data.py",
                                     "check_stack.py", "check_linked.py", "check_lattice_weights.py",
-                                    "check_stack_input.py", "check_obj_import.py"])
+                                    "check_stack_input.py", "check_obj_import.py",
+                                    "check_adaptive.py"])
 def test_blender_script(runner, script, blender_env):
     rc, out = _run(blender_cmd(runner, script), extra_env=blender_env(runner))
     assert rc == 0, f"{runner} {script} failed (rc={rc}):\n{_summary(out)}\n--- tail ---\n{out[-3000:]}"

@@ -28,17 +28,19 @@ bl_info = {
 if "bpy" in locals():   # F8 / script reload: pick up edited submodules
     import importlib
     for _m in (state, inputs, result_arrays, compat, core, nodegroup, frames, linked, meshio,
-               latticeio, carry, objects, statusline, stack_input, gather, plans, live, write,
-               pipeline, bake, handlers, api, operators):
+               latticeio, carry, objects, statusline, stack_input, tessellation, gather, plans,
+               live, write, holds, pipeline, bake, holdframes, handlers, api, operators):
         importlib.reload(_m)
 else:
     import bpy  # noqa: F401
     from . import (state, inputs, result_arrays, compat, core, nodegroup, frames, linked, meshio,
-                   latticeio, carry, objects, statusline, stack_input, gather, plans, live, write,
-                   pipeline, bake, handlers, api, operators)
+                   latticeio, carry, objects, statusline, stack_input, tessellation, gather,
+                   plans, live, write, holds, pipeline, bake, holdframes, handlers, api,
+                   operators)
 
 from .api import (add_smooth_ffd, apply_smooth_ffd, remove_smooth_ffd,  # noqa: E402,F401
-                  update, status, bake_smooth_ffd, clear_bake)
+                  update, status, bake_smooth_ffd, clear_bake, hold_tessellation,
+                  clear_hold)
 
 
 def register():

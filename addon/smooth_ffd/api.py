@@ -6,8 +6,8 @@
 """
 import bpy
 
-from . import bake, compat, core, frames, handlers, linked, nodegroup, objects, pipeline, \
-    stack_input, state, statusline
+from . import bake, compat, core, frames, handlers, holdframes, linked, nodegroup, objects, \
+    pipeline, stack_input, state, statusline
 
 
 def add_smooth_ffd(obj, lattice_obj=None, viewport_level=3, render_level=10, backend="auto",
@@ -87,6 +87,31 @@ def clear_bake(obj, mod=None):
     linked.check_writable(obj, mod, "clear the bake of")
     mods = [mod] if mod is not None else smooth_ffd_modifiers(obj)
     had = [bake.clear(obj, m) for m in mods]
+    if any(had):
+        update(obj)
+    return any(had)
+
+
+def hold_tessellation(obj, mod=None, frame_start=None, frame_end=None):
+    """Holds the adaptive tessellation's counts over frames frame_start..frame_end (default:
+    the scene's range): every one of those frames gets the same topology, the largest counts
+    over them (holds.py), for the render's and the viewport's settings where they are
+    Tolerance or Screen. Returns the kinds held ('render', 'viewport'). Raises ValueError
+    when neither is adaptive, RuntimeError when the frames' patches differ."""
+    mod = _one(obj, mod)
+    linked.check_writable(obj, mod, "hold the tessellation of")
+    scene = bpy.context.scene
+    kinds = holdframes.hold(obj, mod, scene.frame_start if frame_start is None else frame_start,
+                            scene.frame_end if frame_end is None else frame_end, scene)
+    handlers.update_all(scene)
+    return kinds
+
+
+def clear_hold(obj, mod=None):
+    """Every frame takes its own adaptive counts again; returns whether any were held."""
+    linked.check_writable(obj, mod, "clear the held tessellation of")
+    mods = [mod] if mod is not None else smooth_ffd_modifiers(obj)
+    had = [holdframes.clear(obj, m) for m in mods]
     if any(had):
         update(obj)
     return any(had)

@@ -3,7 +3,8 @@ lattice, the placement, the source mesh: the object's own or the stack's geometr
 stack_input) with their fingerprint, and the frames a result of them is right for."""
 import bpy
 
-from . import compat, core, inputs, latticeio, meshio, objects, stack_input, state
+from . import compat, core, inputs, latticeio, meshio, objects, stack_input, state, \
+    tessellation
 
 
 class Settings:
@@ -24,7 +25,8 @@ class Settings:
 class Inputs:
     """Everything one update uses, and its fingerprint (key)."""
 
-    def __init__(self, settings, level, backend, exact, lattice, l2o, source, key):
+    def __init__(self, settings, level, backend, exact, lattice, l2o, source, key, tess):
+        self.tess = tess            # tessellation.Tess: a level, or adaptive to a tolerance
         self.settings = settings
         self.level = level
         self.backend = backend
@@ -44,9 +46,9 @@ def _level_backend_exact(settings, render):
     return level, backend, exact
 
 
-def _key(lattice_key, l2o, settings, source, level, backend, exact):
+def _key(lattice_key, l2o, settings, source, level, backend, exact, tess):
     return inputs.digest(lattice_key, l2o, settings.strength, source.key, source.extras_key,
-                         level, backend, exact)
+                         level, backend, exact, tess.key())
 
 
 def evaluated_inputs(obj, mod, st, p, stack, groups):
@@ -63,9 +65,12 @@ def evaluated_inputs(obj, mod, st, p, stack, groups):
         objects.set_stack_object(obj, mod, None)   # no input check for the own mesh
         stack_input.set_input_copy(obj, mod, stack)
         source = _own_source(obj, settings, st, p.mesh_changed(obj))
-    key = _key(lattice_key, l2o, settings, source, level, backend, exact)
+    box = tessellation.bounding_box(source.positions, pts, l2o) if p.render else None
+    scene = p.scene if p.scene is not None else getattr(p.depsgraph, "scene", None)
+    tess = tessellation.tess(mod, p.render, obj, scene, p.depsgraph, box)
+    key = _key(lattice_key, l2o, settings, source, level, backend, exact, tess)
     return Inputs(settings, level, backend, exact, (rest, pts, interp, weights), l2o, source,
-                  key)
+                  key, tess)
 
 
 def early_inputs(obj, mod, st, stack, groups):
@@ -110,9 +115,10 @@ def early_inputs(obj, mod, st, stack, groups):
     level, backend, exact = _level_backend_exact(settings, False)
     rest, pts, interp, _shape, lattice_key, weights = latticeio.read_lattice(lat, None)
     l2o = core.lattice_to_object(obj_matrix, lat_matrix)
-    key = _key(lattice_key, l2o, settings, st.source, level, backend, exact)
+    tess = tessellation.tess(mod, False)
+    key = _key(lattice_key, l2o, settings, st.source, level, backend, exact, tess)
     return Inputs(settings, level, backend, exact, (rest, pts, interp, weights), l2o,
-                  st.source, key)
+                  st.source, key, tess)
 
 
 def _group_index(obj, settings):

@@ -10,8 +10,8 @@ import threading
 import bpy
 from bpy.app.handlers import persistent
 
-from . import compat, frames, linked, live, nodegroup, objects, pipeline, stack_input, state, \
-    statusline
+from . import compat, frames, holdframes, linked, live, nodegroup, objects, pipeline, \
+    stack_input, state, statusline
 
 
 def smooth_ffd_modifiers(scene=None):
@@ -338,6 +338,12 @@ def on_undo_redo(scene, *_args):
 @persistent
 def on_render_pre(scene, *_args):
     state.flags.rendering = True
+    # With motion blur, adaptive tessellations get one topology over the frame's shutter
+    # (holdframes.hold_shutter: the subframes are evaluated here, before the render's).
+    if not state.flags.busy:
+        for (name, mod_name), note in holdframes.hold_shutter(
+                scene, smooth_ffd_modifiers(scene)).items():
+            print(f"Smooth FFD [{name} / {mod_name}]: motion blur: {note}")
     # Final renders use the render level and exact normals; the frame is already set here.
     # Modifiers reading the stack's geometry wait for the render depsgraph (frame_change_post).
     update_all(scene, render=True, defer_stack=True)
@@ -352,6 +358,7 @@ def on_render_init(scene, *_args):
 @persistent
 def on_render_done(scene, *_args):
     state.flags.rendering = False
+    holdframes.end_shutter(smooth_ffd_modifiers(scene))
     # Back to the viewport level for the interactive session; modifiers reading the stack's
     # geometry read the viewport's on its next evaluation (their result is the render's).
     update_all(scene, defer_stack=True)

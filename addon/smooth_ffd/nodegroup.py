@@ -19,7 +19,8 @@ Layouts (the group's GROUP_TAG value): 1, Backend a text input (Blender 3.4-4.0)
 menu (4.1+: a menu socket feeding a Menu Switch node, which defines the items); 3 and 4, the
 same with the frame ranges and the bake (Show Result folded into the result's frame range);
 5 and 6, the same with the Stack Object and its input check; 7 and 8, the same with the Input
-Copy; 9 and 10, the same with the Result Points. Files made with an older layout are moved
+Copy; 9 and 10, the same with the Result Points; 11 and 12, the same with the tessellation
+modes (Level, Tolerance, Screen: TESS_INPUTS). Files made with an older layout are moved
 to this Blender's when opened (migrate), keeping every setting.
 
 Input Copy (an int k, 0: off): where other modifiers follow it, the evaluated object shows
@@ -49,11 +50,13 @@ TEXT_LAYOUT, MENU_LAYOUT = 1, 2              # before the frame ranges (files of
 TEXT_FRAMES_LAYOUT, MENU_FRAMES_LAYOUT = 3, 4   # before the Stack Object (older add-ons)
 TEXT_STACK_LAYOUT, MENU_STACK_LAYOUT = 5, 6      # before the Input Copy (older add-ons)
 TEXT_COPY_LAYOUT, MENU_COPY_LAYOUT = 7, 8      # before the Result Points (older add-ons)
-TEXT_POINTS_LAYOUT, MENU_POINTS_LAYOUT = 9, 10
-GROUP_LAYOUT = MENU_POINTS_LAYOUT if compat.HAS_MENU_SOCKET else TEXT_POINTS_LAYOUT
+TEXT_POINTS_LAYOUT, MENU_POINTS_LAYOUT = 9, 10   # before the tessellation modes (older add-ons)
+TEXT_TESS_LAYOUT, MENU_TESS_LAYOUT = 11, 12
+GROUP_LAYOUT = MENU_TESS_LAYOUT if compat.HAS_MENU_SOCKET else TEXT_TESS_LAYOUT
 MENU_LAYOUTS = (MENU_LAYOUT, MENU_FRAMES_LAYOUT, MENU_STACK_LAYOUT, MENU_COPY_LAYOUT,
-                MENU_POINTS_LAYOUT)
-POINTS_LAYOUTS = (TEXT_POINTS_LAYOUT, MENU_POINTS_LAYOUT)
+                MENU_POINTS_LAYOUT, MENU_TESS_LAYOUT)
+TESS_LAYOUTS = (TEXT_TESS_LAYOUT, MENU_TESS_LAYOUT)
+POINTS_LAYOUTS = (TEXT_POINTS_LAYOUT, MENU_POINTS_LAYOUT) + TESS_LAYOUTS
 COPY_LAYOUTS = (TEXT_COPY_LAYOUT, MENU_COPY_LAYOUT) + POINTS_LAYOUTS
 STACK_LAYOUTS = (TEXT_STACK_LAYOUT, MENU_STACK_LAYOUT) + COPY_LAYOUTS
 FRAMES_LAYOUTS = (TEXT_FRAMES_LAYOUT, MENU_FRAMES_LAYOUT) + STACK_LAYOUTS
@@ -68,6 +71,20 @@ SETTINGS = (
      "Sub-triangles per patch edge in the viewport"),
     ("Render Level", 'NodeSocketInt', 10, 1, CORE_MAX_LEVEL,
      "Sub-triangles per patch edge for render and Apply"),
+    # Layouts 11 and 12: the tessellation modes (a menu on 4.1+, text before: MENU_ITEMS).
+    ("Viewport Tessellation", 'NodeSocketString', "level", None, None, None),
+    ("Viewport Tolerance", 'NodeSocketFloat', 0.001, 1e-7, 1e6,
+     "Tolerance mode: every triangle within this distance (object units) of its smooth patch"),
+    ("Viewport Max Level", 'NodeSocketInt', 16, 1, CORE_MAX_LEVEL,
+     "Tolerance mode: at most this many segments a patch edge in the viewport"),
+    ("Render Tessellation", 'NodeSocketString', "level", None, None, None),
+    ("Render Tolerance", 'NodeSocketFloat', 0.001, 1e-7, 1e6,
+     "Tolerance mode (and Screen without a camera): every triangle within this distance "
+     "(object units) of its smooth patch"),
+    ("Render Pixel Size", 'NodeSocketFloat', 1.0, 0.01, 1e4,
+     "Screen mode: the tolerance in pixels of the render camera, at the object's nearest point"),
+    ("Render Max Level", 'NodeSocketInt', 64, 1, CORE_MAX_LEVEL,
+     "Tolerance and Screen modes: at most this many segments a patch edge for render and Apply"),
     ("Backend", 'NodeSocketString', "auto", None, None, None),   # a menu on 4.1+ (_backend_text)
     ("Strength", 'NodeSocketFloat', 1.0, -1e6, 1e6, "Deformation strength (as the Lattice modifier)"),
     ("Vertex Group", 'NodeSocketString', "", None, None, "Vertex group weighting the deformation"),
@@ -103,6 +120,17 @@ INTERNAL_INPUTS = COPY_INTERNAL_INPUTS + (
      "Internal: the result's vertex positions, when they were sent without the result mesh"),
 )
 INPUTS = SETTINGS + INTERNAL_INPUTS
+# The tessellation modes' inputs (layouts 11 and 12) and their items: a menu on 4.1+ (as the
+# Backend), a text before (any case).
+MENU_ITEMS = (("Viewport Tessellation", ("Level", "Tolerance")),
+              ("Render Tessellation", ("Level", "Tolerance", "Screen")))
+MENU_NAMES = tuple(name for name, _ in MENU_ITEMS)
+
+
+def menu_items(name):
+    return dict(MENU_ITEMS)[name]
+TESS_INPUTS = ("Viewport Tessellation", "Viewport Tolerance", "Viewport Max Level",
+               "Render Tessellation", "Render Tolerance", "Render Pixel Size", "Render Max Level")
 INTERNAL = tuple(name for name, *_ in INTERNAL_INPUTS)
 # Layouts 1 and 2 (older files): a validity flag instead of the frame ranges, no bake.
 OLD_INTERNAL_INPUTS = (
@@ -150,15 +178,22 @@ def _build_group(group_layout=GROUP_LAYOUT):
     stack = group_layout in STACK_LAYOUTS
     copy = group_layout in COPY_LAYOUTS
     points = group_layout in POINTS_LAYOUTS
+    tess = group_layout in TESS_LAYOUTS
     compat.new_group_socket(group, 'INPUT', 'NodeSocketGeometry', "Geometry")
     internal = INTERNAL_INPUTS if points else COPY_INTERNAL_INPUTS if copy else \
         STACK_INTERNAL_INPUTS if stack else FRAMES_INTERNAL_INPUTS if frames else \
         OLD_INTERNAL_INPUTS
     for name, stype, default, lo, hi, desc in SETTINGS + internal:
+        if name in TESS_INPUTS and not tess:
+            continue
         if name == "Backend":
             if menu:
                 stype, default = 'NodeSocketMenu', None
             desc = _backend_text(menu)
+        elif name in MENU_NAMES:
+            if menu:
+                stype, default = 'NodeSocketMenu', None
+            desc = _menu_text(name, menu)
         sock = compat.new_group_socket(group, 'INPUT', stype, name)
         sock.description = desc
         if default is not None:
@@ -186,6 +221,9 @@ def _build_group(group_layout=GROUP_LAYOUT):
         _frame_switches(group, gin, gout, result, stack, copy)
     if menu:
         _backend_menu(group, gin)
+        if tess:
+            for i, (name, items) in enumerate(MENU_ITEMS):
+                _menu(group, gin, name, items, (-150, 250 + 100 * i))
     return group
 
 
@@ -423,26 +461,50 @@ def _backend_text(menu):
     return f"{', '.join((first,) + tuple(items[1:-1]))} or {items[-1]}"
 
 
+def _menu_text(name, menu):
+    """A tessellation mode input's description: its items (menu) or the words it takes."""
+    items = menu_items(name)
+    words = items if menu else tuple(i.lower() for i in items)
+    return (f"{', '.join(words[:-1])} or {words[-1]}: a fixed level, every triangle within a "
+            f"tolerance" + (", or within a pixel size of the render camera" if len(items) > 2
+                            else ""))
+
+
+def parse_mode(name, value):
+    """A tessellation mode input's value (menu item or text, any case) -> 'level',
+    'tolerance' or 'screen'; an empty value is the first item; anything else raises
+    ValueError."""
+    items = [i.lower() for i in menu_items(name)]
+    v = str(value or items[0]).strip().lower()
+    if v not in items:
+        raise ValueError(f"{name.lower()} must be one of {', '.join(items)}, not {value!r}")
+    return v
+
+
 def _backend_menu(group, gin):
     """4.1+: the Backend menu's items come from a Menu Switch node fed by the input (Blender
     infers a menu socket's items from the Menu Switch it is linked to). The switch's output
     is not used: the add-on reads the modifier's setting, the node only defines the items."""
+    _menu(group, gin, "Backend", backend_items(), (-150, 150))
+
+
+def _menu(group, gin, name, names, location):
+    """4.1+: a menu input's items, from a Menu Switch node it feeds (_backend_menu)."""
     node = group.nodes.new('GeometryNodeMenuSwitch')
-    node.label = "Backend items"
-    node.location = (-150, 150)
+    node.label = f"{name} items"
+    node.location = location
     node.data_type = 'INT'
     items = node.enum_items if hasattr(node, "enum_items") else node.enum_definition.enum_items
-    names = backend_items()
     while len(items) > len(names):
         items.remove(items[len(items) - 1])
-    for i, name in enumerate(names):
+    for i, item in enumerate(names):
         if i < len(items):
-            items[i].name = name
+            items[i].name = item
         else:
-            items.new(name)
-    group.links.new(_out(gin, "Backend"), node.inputs[0])
+            items.new(item)
+    group.links.new(_out(gin, name), node.inputs[0])
     # Only once linked does the socket know the items (else: "enum not found").
-    compat.input_socket(group, "Backend").default_value = names[0]
+    compat.input_socket(group, name).default_value = names[0]
 
 
 def migrate(mod):
@@ -458,7 +520,8 @@ def migrate(mod):
             or (old_layout in FRAMES_LAYOUTS and GROUP_LAYOUT not in FRAMES_LAYOUTS) \
             or (old_layout in STACK_LAYOUTS and GROUP_LAYOUT not in STACK_LAYOUTS) \
             or (old_layout in COPY_LAYOUTS and GROUP_LAYOUT not in COPY_LAYOUTS) \
-            or (old_layout in POINTS_LAYOUTS and GROUP_LAYOUT not in POINTS_LAYOUTS):
+            or (old_layout in POINTS_LAYOUTS and GROUP_LAYOUT not in POINTS_LAYOUTS) \
+            or (old_layout in TESS_LAYOUTS and GROUP_LAYOUT not in TESS_LAYOUTS):
         return False
     values = {}
     for name, *_ in INPUTS:
@@ -476,6 +539,14 @@ def migrate(mod):
             if value not in names:   # it was an error; a menu cannot hold it
                 print(f"Smooth FFD [{mod.name}]: backend {value!r} is not a menu item: {names[0]}")
                 value = names[0]
+        elif name in MENU_NAMES:
+            items = menu_items(name)
+            try:
+                value = items[[i.lower() for i in items].index(parse_mode(name, value))]
+            except ValueError:
+                print(f"Smooth FFD [{mod.name}]: {name.lower()} {value!r} is not a menu item: "
+                      f"{items[0]}")
+                value = items[0]
         compat.set_modifier_input(mod, name, value)
     # An old group's result had no frame range: shown nowhere until the handlers write one
     # (load_post recomputes every modifier).

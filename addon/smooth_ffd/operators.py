@@ -147,6 +147,53 @@ class OBJECT_OT_smooth_ffd_bake_clear(_ModifierOperator, bpy.types.Operator):
         return {'FINISHED'}
 
 
+class OBJECT_OT_smooth_ffd_hold(_ModifierOperator, bpy.types.Operator):
+    """Hold the adaptive tessellation (Tolerance, Screen) over a frame range: those frames
+    share one topology, the finest any of them needs (caches, motion blur)"""
+    bl_idname = "object.smooth_ffd_hold"
+    bl_label = "Hold Smooth FFD Tessellation"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    frame_start: bpy.props.IntProperty(name="Start", default=1)
+    frame_end: bpy.props.IntProperty(name="End", default=250)
+
+    def invoke(self, context, event):
+        self.frame_start, self.frame_end = context.scene.frame_start, context.scene.frame_end
+        return context.window_manager.invoke_props_dialog(self)
+
+    def execute(self, context):
+        obj, mod = self._modifier(context)
+        if mod is None:
+            self.report({'ERROR'}, "no Smooth FFD modifier")
+            return {'CANCELLED'}
+        try:
+            kinds = api.hold_tessellation(obj, mod, self.frame_start, self.frame_end)
+        except (RuntimeError, ValueError) as e:
+            self.report({'ERROR'}, str(e))
+            return {'CANCELLED'}
+        self.report({'INFO'}, f"{mod.name}: {' and '.join(kinds)} tessellation held over "
+                              f"frames {self.frame_start}-{self.frame_end}")
+        return {'FINISHED'}
+
+
+class OBJECT_OT_smooth_ffd_hold_clear(_ModifierOperator, bpy.types.Operator):
+    """Let every frame take its own adaptive tessellation again"""
+    bl_idname = "object.smooth_ffd_hold_clear"
+    bl_label = "Clear Smooth FFD Held Tessellation"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def execute(self, context):
+        obj, mod = self._modifier(context)
+        if mod is None:
+            return {'CANCELLED'}
+        try:
+            api.clear_hold(obj, mod)
+        except RuntimeError as e:
+            self.report({'ERROR'}, str(e))
+            return {'CANCELLED'}
+        return {'FINISHED'}
+
+
 class OBJECT_OT_smooth_ffd_update(bpy.types.Operator):
     """Recompute every Smooth FFD result now"""
     bl_idname = "object.smooth_ffd_update"
@@ -169,6 +216,8 @@ class OBJECT_MT_smooth_ffd(bpy.types.Menu):
         layout.operator(OBJECT_OT_smooth_ffd_remove.bl_idname, text="Remove")
         layout.operator(OBJECT_OT_smooth_ffd_bake.bl_idname, text="Bake...")
         layout.operator(OBJECT_OT_smooth_ffd_bake_clear.bl_idname, text="Clear Bake")
+        layout.operator(OBJECT_OT_smooth_ffd_hold.bl_idname, text="Hold Tessellation...")
+        layout.operator(OBJECT_OT_smooth_ffd_hold_clear.bl_idname, text="Clear Held Tessellation")
         layout.operator(OBJECT_OT_smooth_ffd_update.bl_idname, text="Update All")
 
 
@@ -186,6 +235,8 @@ CLASSES = (
     OBJECT_OT_smooth_ffd_remove,
     OBJECT_OT_smooth_ffd_bake,
     OBJECT_OT_smooth_ffd_bake_clear,
+    OBJECT_OT_smooth_ffd_hold,
+    OBJECT_OT_smooth_ffd_hold_clear,
     OBJECT_OT_smooth_ffd_update,
     OBJECT_MT_smooth_ffd,
 )

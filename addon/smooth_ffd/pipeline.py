@@ -4,7 +4,7 @@ status (status). The handlers, the operators and the scripting API call update_m
 nothing here calls back up to them."""
 import time
 
-from . import frames, gather, inputs, linked, live, objects, plans, stack_input, state, \
+from . import frames, gather, holds, inputs, linked, live, objects, plans, stack_input, state, \
     statusline, write
 
 
@@ -52,6 +52,9 @@ def update_modifier(obj, mod, p):
             live.schedule_settle(now)
         frame = frames.scene_frame(p.scene, p.depsgraph)
         shown = gather.result_frames(obj, got.settings.lattice, frame, stack)
+        tess = got.tess
+        if tess.adaptive:   # counts held over frames (holds.py) are part of the inputs
+            key = inputs.digest(key, holds.stamp(ro, st, render, frame))
         if not force and key == st.last_key and write.result_matches(ro.data, st):
             # Same inputs as the result holds: it is right for this frame too.
             if st.status_base is not None:
@@ -62,18 +65,23 @@ def update_modifier(obj, mod, p):
         # weights: the lattice's vertex group; a per-frame value like the points (adding or
         # removing it changes the lattice's structure key, so that replans).
         lattice = plans.lattice(st, rest, pts, interp, got.l2o, got.settings.strength, weights)
-        plan_key = plans.ensure_plan(st, got.source, lattice, got.level, got.backend)
-        res = plans.frame(st, lattice, exact)
+        plan_key = plans.ensure_plan(st, got.source, lattice, got.level, got.backend, tess)
+        hold, hold_note = holds.lookup(ro, st, render, frame, holds.token(plan_key),
+                                       tess.setting) if tess.adaptive else (None, None)
+        res = plans.frame(st, lattice, exact, hold)
         # The fit error bound (a face attribute, its maximum in the status): with exact
         # results, not while an animation plays (it costs about one more CPU frame).
         fit_error = plans.fit_errors(st) if exact and (render or force or not live.playing()) else None
         t1 = time.perf_counter()
-        if st.output[0] is not st.plan_key:
+        if st.output[0] is not st.plan_key or tess.adaptive:
             # A new plan often keeps the output topology (an armature's next pose: the same
-            # knot-plane cuts): then only positions and what lies on the input move.
-            st.output = (st.plan_key, inputs.digest(res.triangles, res.face_index,
-                                                    res.sharp_edges, len(res.positions),
-                                                    got.source.material_index))
+            # knot-plane cuts): then only positions and what lies on the input move. An
+            # adaptive frame may change it on any update.
+            output = inputs.digest(res.triangles, res.face_index, res.sharp_edges,
+                                   len(res.positions), got.source.material_index)
+            if tess.adaptive and output != st.output[1]:
+                st.scratch = (None, {})   # write_normals' per-topology facts
+            st.output = (st.plan_key, output)
         times = write.write_result(obj, mod, ro, res, got.source, inputs.digest(plan_key), exact,
                                    st, groups, fit_error)
         normals = times.pop("normals")
@@ -87,9 +95,12 @@ def update_modifier(obj, mod, p):
             else got.backend
         tail = (f"{len(res.triangles)} tris, deform {1e3 * (t1 - t0):.1f} ms, "
                 f"write {1e3 * (t2 - t1):.1f} ms ({normals} normals)")
+        head = f"OK {used}, level {got.level}"
+        if tess.adaptive:
+            head, tail = _adaptive_status(used, got, res, hold_note, tail)
         if fit_error is not None:
             tail += f", fit error \u2264 {float(fit_error.max(initial=0.0)):.3g}"
-        statusline.set_ok(obj, mod, st, (f"OK {used}, level {got.level}", tail), shown, frame,
+        statusline.set_ok(obj, mod, st, (head, tail), shown, frame,
                       wrote_result=True, scene=p.scene)
         state.timings[state.uid(ro)] = {
             "deform_ms": 1e3 * (t1 - t0), "write_ms": 1e3 * (t2 - t1), "normals": normals,
@@ -117,6 +128,42 @@ def update_modifier(obj, mod, p):
             message += f" (the lattice object {st.lattice_gone!r} was deleted)"
         statusline.fail(obj, mod, st, message)
     return False
+
+
+def _adaptive_status(used, got, res, hold_note, tail):
+    """(head, tail) of an adaptive update's status: the tolerance it was computed to, whether
+    every triangle met it, and what held its counts."""
+    tess, stats = got.tess, res.stats
+    head = f"OK {used}, tolerance {tess.tolerance:.3g}"
+    if tess.pixel is not None:
+        head += f" ({tess.setting[3]:g} px)"
+    met = "tolerance met" if stats.get("tolerance_met") else \
+        f"tolerance not met at max level {tess.max_level}"
+    notes = [n for n in (hold_note, tess.note) if n]
+    if got.backend == "cuda":
+        notes.append("tolerance modes run on the CPU")
+    tail = tail.replace(" tris,", f" tris, {met},", 1)
+    return head, tail + "".join(f", {n}" for n in notes)
+
+
+def tessellation_counts(obj, mod, p):
+    """(plan token, tessellation setting, counts) of this modifier's adaptive tessellation
+    for the frame and settings of the Pass p, without writing anything; None where p's
+    settings (render or viewport) are a fixed level. Raises SmoothFFDError when there is no
+    valid input."""
+    ro = objects.result_object(obj, mod, create=True)
+    st = state.of_result(ro, create=True)
+    stack = stack_input.Stack(obj, mod, p.render, own=p.own_input)
+    groups = not stack.reads_stack or bool(stack.below) or p.render or p.force
+    got = gather.evaluated_inputs(obj, mod, st, p, stack, groups)
+    if got is None:
+        raise inputs.SmoothFFDError("no input to tessellate")
+    if not got.tess.adaptive:
+        return None
+    rest, pts, interp, weights = got.lattice
+    lattice = plans.lattice(st, rest, pts, interp, got.l2o, got.settings.strength, weights)
+    plan_key = plans.ensure_plan(st, got.source, lattice, got.level, got.backend, got.tess)
+    return holds.token(plan_key), got.tess.setting, plans.counts(st, lattice)
 
 
 def forget(obj=None, mod=None, ro=None):

@@ -38,21 +38,36 @@ class _progress:
             self.wm.progress_end()
 
 
-def ensure_plan(st, source, lattice, level, backend):
+def ensure_plan(st, source, lattice, level, backend, tess=None):
     """st.deformer for these inputs: the cached one while its key holds, else a new plan.
-    Returns the plan's key."""
-    plan_key = (source.key, lattice.structure_key(), level, backend)
+    Returns the plan's key. tess (tessellation.Tess) adaptive: one adaptive plan on the CPU
+    (the core's adaptive frames run there) serves every tolerance and max level, which are
+    set on it for each frame (the plan does not depend on them: a camera moving in Screen
+    mode replans nothing)."""
+    adaptive = tess is not None and tess.adaptive
+    plan_key = (source.key, lattice.structure_key(), "adaptive", "cpu") if adaptive else \
+        (source.key, lattice.structure_key(), level, backend)
     if st.deformer is None or st.plan_key != plan_key:
         st.deformer = st.result = None
         st.outs = {}
-        with _progress(len(source.corner_vertices) * level * level > 2_000_000):
-            st.deformer = core.make_deformer(source, lattice, level, backend)
+        long = len(source.corner_vertices) * (1 if adaptive else level * level) > 2_000_000
+        with _progress(long):
+            st.deformer = core.make_deformer(source, lattice, level, "cpu" if adaptive else backend,
+                                             tess.tolerance if adaptive else None,
+                                             tess.max_level if adaptive else None)
         st.plan_key = plan_key
         state.plans_built[0] += 1
+    if adaptive:
+        st.deformer.tolerance = float(tess.tolerance)
+        st.deformer.max_level = int(tess.max_level)
     return plan_key
 
 
-def frame(st, lattice, exact):
+def is_adaptive(st):
+    return st.deformer is not None and getattr(st.deformer, "tolerance", None) is not None
+
+
+def frame(st, lattice, exact, hold=None):
     """The core's frame on st's plan: positions, and the normals where exact.
 
     out=: overwrite the previous update's arrays in place (no fresh pages each edit);
@@ -60,7 +75,15 @@ def frame(st, lattice, exact):
     update's arrays are read only here and by the writes). Without exact normals (3.4-4.4
     viewport: Blender shades the dense mesh from its own geometry, write.write_result) the
     core computes positions only: the same positions in well under half the time
-    (res.normals is None then)."""
+    (res.normals is None then).
+
+    Adaptive plans (ensure_plan) run a whole adaptive frame each time (a new topology may
+    come out), in the corner layout, with the counts `hold` where given (holds.py)."""
+    if is_adaptive(st):
+        res = st.result = st.deformer.deform(lattice, normals=exact, layout="corners",
+                                             hold=hold)
+        state.deform_calls["normals" if exact else "positions_only"] += 1
+        return res
     chosen = state.LAYOUT or layout(st.deformer)
     res = st.result = st.outs[chosen] = st.deformer.deform(
         lattice, out=st.outs.get(chosen), normals=exact, layout=chosen, incremental=True)
@@ -77,6 +100,11 @@ def layout(deformer):
     render_triangles in numpy (blender_scenes/bench_layout.py: at level 10, 89 against 184 ms
     on bpy 5.0)."""
     return "corners" if deformer.splits_normals else "compact"
+
+
+def counts(st, lattice):
+    """The adaptive counts of this lattice's frame on st's plan, without its mesh."""
+    return st.deformer.tessellation_counts(lattice)
 
 
 def fit_errors(st):

@@ -62,6 +62,9 @@ class ModifierState:
         self.exact_key = None     # the inputs' key (with exact normals) of the last result
         self.changed_at = -1e9    # when a result for new inputs was last computed (live editing)
         self.lattice = (None, None)  # (plans.lattice's key, the BlenderLattice last built for it)
+        self.shutter = None       # ((from, to), plan token, setting, counts) held over a render's
+        #                           motion-blur shutter (holds.py)
+        self.hold_cache = {}      # holds.lookup: a saved hold's counts as arrays
 
 
 # uid -> ModifierState, and uid -> the last update's timings (pipeline.last_timing)

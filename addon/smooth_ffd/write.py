@@ -63,6 +63,9 @@ def write_result(obj, mod, ro, res, source, topology_token, exact, st, groups=Tr
     if rebuild or mesh.get(state.EXTRAS_KEY) != extras_token:
         tc = time.perf_counter()
         plan = st.deformer.plan   # where the output lies on the input (docs/api.md)
+        if getattr(st.deformer, "tolerance", None) is not None:
+            # An adaptive result's topology is not the plan's: found from its rest positions.
+            plan = carry.AdaptiveSources(res, plan, source)
         carry.write_uv_layers(mesh, res, source, plan)
         if groups:
             carry_calls = carry.write_vertex_groups(ro, source, plan)

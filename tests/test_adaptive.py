@@ -206,8 +206,6 @@ def test_bad_arguments():
             smoothffd.Deformer(cube, lat, tolerance=bad)
     with pytest.raises(TypeError, match="tolerance"):
         smoothffd.Deformer(cube, lat, tolerance="0.1")
-    with pytest.raises(ValueError, match="CPU only"):
-        smoothffd.Deformer(cube, lat, tolerance=0.01, device="cuda")
     with pytest.raises(ValueError, match="max_level"):
         smoothffd.Deformer(cube, lat, tolerance=0.01, max_level=0)
     d = smoothffd.Deformer(cube, lat, tolerance=0.01)
@@ -236,6 +234,8 @@ def test_held_counts_give_one_topology_over_frames():
         np.testing.assert_array_equal(o["edge_segments"], r.counts["edge_segments"])
         np.testing.assert_array_equal(o["patch_level"], r.counts["patch_level"])
     assert len({len(r.triangles) for r in free}) > 1  # the topology follows the pose when free
+    for o, r, f in zip(own, free, frames):  # a frame's own counts give its own mesh
+        np.testing.assert_array_equal(d.deform(f, hold=o).triangles, r.triangles)
     hold = {k: np.maximum.reduce([o[k] for o in own]) for k in own[0]}
     held = [d.deform(f, hold=hold) for f in frames]
     for r in held:
@@ -246,3 +246,38 @@ def test_held_counts_give_one_topology_over_frames():
         d.deform(hold={"edge_segments": hold["edge_segments"][:-1], "patch_level": hold["patch_level"]})
     with pytest.raises(ValueError, match="adaptive"):
         smoothffd.Deformer(mesh, lat, level=2, device="cpu").deform(hold=hold)
+
+
+# --- CUDA: the same counts, topology and floats as the CPU (skipped without a usable GPU).
+_USABLE, _WHY = smoothffd.cuda_status()
+cuda = pytest.mark.skipif(not _USABLE, reason=f"no usable CUDA device: {_WHY}")
+
+
+@cuda
+@pytest.mark.parametrize("name", ["suzanne", "figure", "torus", "cube"])
+def test_cuda_gives_the_cpu_mesh(name):
+    mesh = real.load(name)
+    lattice = real._random_moderate(mesh, 7)
+    size = float(np.linalg.norm(np.ptp(mesh.positions, axis=0)))
+    uvs = np.random.default_rng(1).uniform(size=(len(mesh.corner_vertices), 2)).astype(np.float32)
+    for rel in (3e-3, 3e-4):
+        c = smoothffd.Deformer(mesh, lattice, tolerance=rel * size, device="cpu")
+        g = smoothffd.Deformer(mesh, lattice, tolerance=rel * size, device="cuda")
+        assert g.device == "cuda"
+        vals = _control_values_f32(lattice)
+        rc = _core.adaptive_frame(c.plan, vals, rel * size, 64, 0, True, uvs)
+        rg = g._evaluator.adaptive_frame(vals, rel * size, 64, True, uvs)
+        for k in ("edge_segments", "patch_level", "triangles", "face_index", "triangle_patch", "sharp_edges"):
+            np.testing.assert_array_equal(rg[k], rc[k], err_msg=k)
+        for k in ("positions", "rest_positions", "corner_normals", "uvs"):
+            diff = float(np.abs(rg[k].astype(np.float64) - rc[k]).max())
+            print(f"\n  {name} t={rel:g}: CUDA - CPU {k}: largest difference {diff:.3g}")
+            np.testing.assert_array_equal(rg[k], rc[k], err_msg=k)  # the same floats
+        assert rg["max_bound"] == rc["max_bound"] and rg["capped"] == rc["capped"]
+        res = g.deform()
+        assert res.stats["device"] == "cuda"
+        np.testing.assert_array_equal(res.triangles, rc["triangles"])
+        # Held counts on the device too.
+        hold = g.tessellation_counts()
+        np.testing.assert_array_equal(hold["patch_level"], rc["patch_level"])
+        np.testing.assert_array_equal(g.deform(hold=hold).triangles, rc["triangles"])

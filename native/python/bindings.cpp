@@ -117,6 +117,58 @@ void check_values(const Plan& plan, const Arr<float>& D) {
 
 Frame frame_of(bool incremental) { return incremental ? Frame::incremental : Frame::whole; }
 
+// The adaptive frame's arguments checked against the plan (both backends' bindings).
+AdaptiveOptions adaptive_options(const Plan& plan, const Arr<float>& D, double tolerance, int max_level, bool normals,
+                                 const std::optional<Arr<float>>& corner_uv,
+                                 const std::optional<Arr<int>>& min_edge_segments,
+                                 const std::optional<Arr<int>>& min_patch_level, bool counts_only) {
+  check_values(plan, D);
+  if (corner_uv && corner_uv->size() != 2 * (py::ssize_t)plan.input_corners)
+    throw std::invalid_argument("uvs: expected (C, 2) corner UVs of the planned mesh");
+  AdaptiveOptions opt;
+  opt.tolerance = tolerance;
+  opt.max_level = max_level;
+  opt.normals = normals;
+  opt.counts_only = counts_only;
+  if (min_edge_segments.has_value() != min_patch_level.has_value())
+    throw std::invalid_argument("hold: expected both edge_segments and patch_level");
+  if (min_edge_segments) {
+    if (min_edge_segments->size() != (py::ssize_t)plan.edges || min_patch_level->size() != (py::ssize_t)plan.patches)
+      throw std::invalid_argument("hold: expected edge_segments (" + std::to_string(plan.edges) +
+                                  ",) and patch_level (" + std::to_string(plan.patches) + ",) of this plan");
+    opt.min_edge_segments = min_edge_segments->data();
+    opt.min_patch_level = min_patch_level->data();
+  }
+  return opt;
+}
+
+py::dict adaptive_dict(const Plan& plan, const AdaptiveMesh& a, const AdaptiveOptions& opt, bool uvs) {
+  py::dict r;
+  r["edge_segments"] = copy_out(a.edge_segments, {(py::ssize_t)a.edge_segments.size()});
+  r["patch_level"] = copy_out(a.patch_level, {(py::ssize_t)a.patch_level.size()});
+  r["max_bound"] = a.max_bound;
+  r["capped"] = a.capped;
+  r["stage_ms"] = times_dict(a.times);
+  if (opt.counts_only) return r;
+  const py::ssize_t N = (py::ssize_t)a.positions.size() / 3, T = (py::ssize_t)a.face_index.size();
+  r["positions"] = copy_out(a.positions, {N, 3});
+  r["triangles"] = copy_out(a.triangles, {T, 3});
+  r["face_index"] = copy_out(a.face_index, {T});
+  r["triangle_patch"] = copy_out(a.triangle_patch, {T});
+  r["corner_normals"] = opt.normals ? py::object(copy_out(a.corner_normals, {T, 3, 3})) : py::object(py::none());
+  r["uvs"] = uvs ? py::object(copy_out(a.uvs, {T, 3, 2})) : py::object(py::none());
+  r["rest_positions"] = copy_out(a.rest_positions, {N, 3});
+  r["sharp_edges"] = copy_out(a.sharp_edges, {(py::ssize_t)a.sharp_edges.size() / 2, 2});
+  if (!a.patch_uniform.empty())
+    r["patch_uniform"] = copy_out(std::vector<uint8_t>(a.patch_uniform.begin(), a.patch_uniform.end()),
+                                  {(py::ssize_t)a.patch_uniform.size()});
+  if (opt.details) {
+    r["patch_control"] = copy_out(a.patch_control, {(py::ssize_t)plan.patches, 10, 3});
+    r["corner_bary"] = copy_out(a.corner_bary, {T, 3, 3});
+  }
+  return r;
+}
+
 py::tuple run_evaluator(Evaluator& ev, const Arr<float>& D, const py::object& out_positions,
                         const py::object& out_normals, bool incremental) {
   const Plan& plan = ev.plan();
@@ -499,59 +551,23 @@ PYBIND11_MODULE(_core, m) {
       [](std::shared_ptr<Plan> plan, Arr<float> D, double tolerance, int max_level, int threads, bool normals,
          std::optional<Arr<float>> corner_uv, bool details, std::optional<Arr<int>> min_edge_segments,
          std::optional<Arr<int>> min_patch_level, bool counts_only) {
-        check_values(*plan, D);
-        if (corner_uv && corner_uv->size() != 2 * (py::ssize_t)plan->input_corners)
-          throw std::invalid_argument("uvs: expected (C, 2) corner UVs of the planned mesh");
-        AdaptiveOptions opt;
-        opt.tolerance = tolerance;
-        opt.max_level = max_level;
+        AdaptiveOptions opt = adaptive_options(*plan, D, tolerance, max_level, normals, corner_uv, min_edge_segments,
+                                               min_patch_level, counts_only);
         opt.threads = threads;
-        opt.normals = normals;
         opt.details = details;
-        opt.counts_only = counts_only;
-        if (min_edge_segments.has_value() != min_patch_level.has_value())
-          throw std::invalid_argument("hold: expected both edge_segments and patch_level");
-        if (min_edge_segments) {
-          if (min_edge_segments->size() != (py::ssize_t)plan->edges || min_patch_level->size() != (py::ssize_t)plan->patches)
-            throw std::invalid_argument("hold: expected edge_segments (" + std::to_string(plan->edges) +
-                                        ",) and patch_level (" + std::to_string(plan->patches) + ",) of this plan");
-          opt.min_edge_segments = min_edge_segments->data();
-          opt.min_patch_level = min_patch_level->data();
-        }
         const float* d = D.data();
         const float* uv = corner_uv ? corner_uv->data() : nullptr;
-        AdaptiveMesh a = interruptible([&] { return adaptive_frame(*plan, d, uv, opt); });
-        py::dict r;
-        r["edge_segments"] = copy_out(a.edge_segments, {(py::ssize_t)a.edge_segments.size()});
-        r["patch_level"] = copy_out(a.patch_level, {(py::ssize_t)a.patch_level.size()});
-        r["max_bound"] = a.max_bound;
-        r["capped"] = a.capped;
-        r["stage_ms"] = times_dict(a.times);
-        if (counts_only) return r;
-        const py::ssize_t N = (py::ssize_t)a.positions.size() / 3, T = (py::ssize_t)a.face_index.size();
-        r["positions"] = copy_out(a.positions, {N, 3});
-        r["triangles"] = copy_out(a.triangles, {T, 3});
-        r["face_index"] = copy_out(a.face_index, {T});
-        r["triangle_patch"] = copy_out(a.triangle_patch, {T});
-        r["corner_normals"] = normals ? py::object(copy_out(a.corner_normals, {T, 3, 3})) : py::object(py::none());
-        r["uvs"] = uv ? py::object(copy_out(a.uvs, {T, 3, 2})) : py::object(py::none());
-        r["rest_positions"] = copy_out(a.rest_positions, {N, 3});
-        r["sharp_edges"] = copy_out(a.sharp_edges, {(py::ssize_t)a.sharp_edges.size() / 2, 2});
-        r["patch_uniform"] = copy_out(std::vector<uint8_t>(a.patch_uniform.begin(), a.patch_uniform.end()),
-                                      {(py::ssize_t)a.patch_uniform.size()});
-        if (details) {
-          r["patch_control"] = copy_out(a.patch_control, {(py::ssize_t)plan->patches, 10, 3});
-          r["corner_bary"] = copy_out(a.corner_bary, {T, 3, 3});
-        }
-        return r;
+        return adaptive_dict(*plan, interruptible([&] { return adaptive_frame(*plan, d, uv, opt); }), opt,
+                             uv != nullptr);
       },
       py::arg("plan").none(false), py::arg("values"), py::arg("tolerance"), py::arg("max_level"),
       py::arg("threads") = 0, py::arg("normals") = true, py::arg("uvs") = py::none(),
       py::arg("details") = false, py::arg("min_edge_segments") = py::none(), py::arg("min_patch_level") = py::none(),
       py::arg("counts_only") = false,
-      "one adaptive frame (eval/adaptive.hpp): a dict of the mesh's arrays (positions, triangles, "
-      "face_index, triangle_patch, corner_normals, uvs, rest_positions, sharp_edges), the counts "
-      "(edge_segments, patch_level, patch_uniform), max_bound, capped and stage_ms");
+      "one adaptive frame on the CPU (eval/adaptive.hpp): a dict of the mesh's arrays (positions, "
+      "triangles, face_index, triangle_patch, corner_normals, uvs, rest_positions, sharp_edges), the "
+      "counts (edge_segments, patch_level, patch_uniform), max_bound, capped and stage_ms; "
+      "counts_only: the counts alone; details: also patch_control and corner_bary (tests)");
   m.def(
       "adaptive_bounds",
       [](Arr<float> cp, Arr<double> st, int m, Arr<float> curve, int n) {
@@ -640,6 +656,28 @@ PYBIND11_MODULE(_core, m) {
              return times_dict(t);
            },
            py::arg("values"), "runs the frame on the device only; returns stage times (ms, CUDA events)");
+  cuda.def(
+      "adaptive_frame",
+      [](CudaEvaluator& ev, Arr<float> D, double tolerance, int max_level, bool normals,
+         std::optional<Arr<float>> corner_uv, std::optional<Arr<int>> min_edge_segments,
+         std::optional<Arr<int>> min_patch_level, bool counts_only) {
+        const Plan& plan = ev.plan();
+        const AdaptiveOptions opt = adaptive_options(plan, D, tolerance, max_level, normals, corner_uv,
+                                                     min_edge_segments, min_patch_level, counts_only);
+        const float* d = D.data();
+        const float* uv = corner_uv ? corner_uv->data() : nullptr;
+        AdaptiveMesh a;
+        {
+          py::gil_scoped_release release;
+          a = ev.adaptive_frame(d, uv, opt);
+        }
+        return adaptive_dict(plan, a, opt, uv != nullptr);
+      },
+      py::arg("values"), py::arg("tolerance"), py::arg("max_level"), py::arg("normals") = true,
+      py::arg("uvs") = py::none(), py::arg("min_edge_segments") = py::none(), py::arg("min_patch_level") = py::none(),
+      py::arg("counts_only") = false,
+      "one adaptive frame on the device: the dict of the CPU's smoothffd._core.adaptive_frame, the same counts "
+      "and topology");
   def_frames(cuda, /*pinned=*/true,
              "(positions (N, 3), stage times): the whole frame on the device, positions copied "
              "back, the normals' copy back and gather skipped");

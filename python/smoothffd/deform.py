@@ -155,8 +155,8 @@ class Deformer:
     units: adaptive tessellation, each patch edge and interior as fine as needed for every
     output triangle to be within `tolerance` of the smooth patch it approximates, recomputed
     each frame (docs/algorithm.md, "Adaptive tessellation"); at most `max_level` segments an
-    edge. `level` is then unused. Adaptive frames run on the CPU (device "auto" chooses it;
-    "cuda" is refused) and give normals per corner (layout "corners").
+    edge. `level` is then unused. Both devices decide the same counts, so give the same
+    topology; normals come per corner (layout "corners").
     """
 
     def __init__(self, mesh, lattice, level=10, device="auto", threads=0, tolerance=None,
@@ -175,10 +175,6 @@ class Deformer:
             self.tolerance = finite_float(tolerance, "tolerance")
             if not self.tolerance > 0:
                 raise ValueError(f"tolerance: expected a positive distance, got {self.tolerance!r}")
-            if device == "cuda":
-                raise ValueError("tolerance: adaptive tessellation runs on the CPU only; use device='cpu' "
-                                 "or 'auto'")
-            device = "cpu"
             self.level = 1  # the plan's uniform tables are not used
         self.max_level = positive_int(max_level, "max_level", 1, MAX_LEVEL)
         self.mesh = mesh
@@ -432,8 +428,7 @@ class Deformer:
             raise ValueError("tessellation_counts: only adaptive Deformers (tolerance=...) have counts")
         with self._lock:
             values = self._take(lattice_or_points)
-            r = _core.adaptive_frame(self.plan, values, self.tolerance, self.max_level, self.threads,
-                                     False, None, False, *self._hold_arrays(hold), counts_only=True)
+            r = self._adaptive(values, False, None, self._hold_arrays(hold), counts_only=True)
             return {"edge_segments": r["edge_segments"], "patch_level": r["patch_level"]}
 
     def _hold_arrays(self, hold):
@@ -452,6 +447,17 @@ class Deformer:
             out.append(np.ascontiguousarray(np.clip(a, 1, MAX_LEVEL), dtype=np.int32))
         return out
 
+    def _adaptive(self, values, normals, uvs, held, counts_only=False):
+        """The core's adaptive frame on this Deformer's device (CUDA falls back as _deform's)."""
+        args = (values, self.tolerance, self.max_level)
+        if self.device == "cuda":
+            try:
+                return self._evaluator.adaptive_frame(*args, normals, uvs, *held, counts_only=counts_only)
+            except (RuntimeError, MemoryError) as exc:
+                self._fall_back_to_cpu(exc)
+        return _core.adaptive_frame(self.plan, *args, self.threads, normals, uvs, False, *held,
+                                    counts_only=counts_only)
+
     def _deform_adaptive(self, lattice_or_points, normals, hold=None):
         """One adaptive frame (Deformer's tolerance): a Result whose topology follows the
         deformed patches; `out` and `incremental` do not apply (each frame is new)."""
@@ -460,11 +466,10 @@ class Deformer:
         t0 = time.perf_counter()
         m = self.mesh
         uvs = None if m.uvs is None else np.ascontiguousarray(m.uvs, dtype=np.float32)
-        r = _core.adaptive_frame(self.plan, values, self.tolerance, self.max_level, self.threads,
-                                 normals, uvs, False, *held)
+        r = self._adaptive(values, normals, uvs, held)
         total = (time.perf_counter() - t0) * 1e3
         p = self.plan
-        stats = dict(device="cpu", device_message=self.device_message, plan_ms=self.plan_ms,
+        stats = dict(device=self.device, device_message=self.device_message, plan_ms=self.plan_ms,
                      deform_ms=total, stage_ms=dict(r["stage_ms"]), input_vertices=p.input_vertices,
                      patches=p.patches, sub_vertices=p.sub_vertices,
                      output_vertices=len(r["positions"]), output_triangles=len(r["triangles"]),

@@ -159,6 +159,36 @@ int evaluate_compact(sffd_cuda_evaluator* ev, const float* D, float* positions, 
   return guarded(err, [&] { put_times(ev->ev->evaluate_compact(D, positions, render_normals), times); });
 }
 
+int adaptive_frame(sffd_cuda_evaluator* ev, const float* D, double tolerance, int max_level,
+                   const int* min_edge_segments, const int* min_patch_level, const float* corner_uv, int with_normals,
+                   int64_t* vertices, int64_t* triangles, double* max_bound, int64_t* capped, sffd_cuda_times* times,
+                   sffd_cuda_error* err) {
+  return guarded(err, [&] {
+    sffd::AdaptiveOptions o;
+    o.tolerance = tolerance;
+    o.max_level = max_level;
+    o.normals = with_normals != 0;
+    o.min_edge_segments = min_edge_segments;
+    o.min_patch_level = min_patch_level;
+    StageTimes t;
+    const sffd::cuda_impl::AdaptiveSizes z = ev->ev->adaptive_frame(D, o, corner_uv, t);
+    *vertices = z.vertices;
+    *triangles = z.triangles;
+    *max_bound = z.max_bound;
+    *capped = z.capped;
+    put_times(t, times);
+  });
+}
+
+int adaptive_copy(sffd_cuda_evaluator* ev, float* positions, float* rest_positions, int* triangles, int* face_index,
+                  int* triangle_patch, float* corner_normals, float* uvs, int* edge_segments, int* patch_level,
+                  sffd_cuda_error* err) {
+  return guarded(err, [&] {
+    ev->ev->adaptive_copy(positions, rest_positions, triangles, face_index, triangle_patch, corner_normals, uvs,
+                          edge_segments, patch_level);
+  });
+}
+
 int host_alloc(uint64_t bytes, void** out, sffd_cuda_error* err) {
   return guarded(err, [&] {
     if (!out) throw std::invalid_argument("host_alloc: null output");
@@ -205,6 +235,8 @@ sffd_cuda_api make_api() noexcept {
   a.host_alloc = host_alloc;
   a.host_free = host_free;
   a.testing_poison = testing_poison;
+  a.adaptive_frame = adaptive_frame;
+  a.adaptive_copy = adaptive_copy;
   return a;
 }
 

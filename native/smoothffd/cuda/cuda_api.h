@@ -27,7 +27,7 @@
 extern "C" {
 #endif
 
-#define SFFD_CUDA_ABI_VERSION 6
+#define SFFD_CUDA_ABI_VERSION 7
 #define SFFD_CUDA_ENTRY "sffd_cuda_api_v1"
 
 /* What a failed call raises on the C++ side (cuda_proxy.cpp). */
@@ -105,6 +105,22 @@ typedef struct sffd_cuda_api {
    * into it at the bus's full speed. host_free takes what host_alloc returned. */
   int (*host_alloc)(uint64_t bytes, void** out, sffd_cuda_error* err);
   void (*host_free)(void* ptr);
+
+  /* Adaptive tessellation (eval/adaptive.hpp) on the device: one frame from the control values
+   * D (host) to within `tolerance` of the patches, at most max_level segments an edge;
+   * min_edge_segments (E) and min_patch_level (P) hold counts (both null: none); corner_uv the
+   * input's C x 2 UVs or null; with_normals: also per-corner normals. Writes the output's
+   * vertex and triangle counts, the largest bound and the count of edges and patches held at
+   * max_level above the tolerance; adaptive_copy then copies the arrays (any null: skipped):
+   * positions and rest_positions N x 3, triangles T x 3, face_index and triangle_patch T,
+   * corner_normals T x 3 x 3, uvs T x 3 x 2, edge_segments E, patch_level P. */
+  int (*adaptive_frame)(sffd_cuda_evaluator* ev, const float* D, double tolerance, int max_level,
+                        const int* min_edge_segments, const int* min_patch_level, const float* corner_uv,
+                        int with_normals, int64_t* vertices, int64_t* triangles, double* max_bound,
+                        int64_t* capped, sffd_cuda_times* times, sffd_cuda_error* err);
+  int (*adaptive_copy)(sffd_cuda_evaluator* ev, float* positions, float* rest_positions, int* triangles,
+                       int* face_index, int* triangle_patch, float* corner_normals, float* uvs,
+                       int* edge_segments, int* patch_level, sffd_cuda_error* err);
 
   /* Testing (smoothffd._core._testing, not for users): fills the evaluator's device outputs
    * and intermediates with NaN, so that a test sees every element a frame must write. */

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <stdexcept>
 
@@ -58,6 +59,7 @@ struct CudaEvaluator::Impl {
   // The reference path's buffers (ensure_reference): the frame's samples, Jacobians and edge
   // control points (fv), and the products' matrices.
   std::unique_ptr<CublasGemm> gemm;
+  std::unique_ptr<AdaptiveDevice> adaptive;  // made by the first adaptive frame
   float* X = nullptr;  // K x 6P
   float* F = nullptr;  // 10 x 6P
   float* C = nullptr;  // 10 x 6P
@@ -75,6 +77,7 @@ struct CudaEvaluator::Impl {
 
   ~Impl() {
     gemm.reset();
+    adaptive.reset();
     if (stream) cudaStreamDestroy(stream);
   }
 
@@ -469,6 +472,29 @@ StageTimes CudaEvaluator::evaluate_compact(const float* D, float* positions, flo
   StageTimes t = m.times_from(names);
   t.emplace_back("copy_back", ms);
   return t;
+}
+
+AdaptiveSizes CudaEvaluator::adaptive_frame(const float* D, const AdaptiveOptions& options, const float* corner_uv,
+                                           StageTimes& times) {
+  Impl& m = *impl_;
+  if (!(options.tolerance > 0) || !std::isfinite(options.tolerance))
+    throw std::invalid_argument("tolerance: expected a positive finite distance, got " + std::to_string(options.tolerance));
+  if (options.max_level < 1 || options.max_level > kMaxLevel)
+    throw std::invalid_argument("max_level: expected 1.." + std::to_string(kMaxLevel) + ", got " +
+                                std::to_string(options.max_level));
+  if (!m.adaptive) m.adaptive.reset(new AdaptiveDevice(*plan_, m.pv));
+  m.stage_D(D);
+  CK(cudaMemcpyAsync(m.D, m.h_D.ptr, m.nD * sizeof(float), cudaMemcpyHostToDevice, m.stream));
+  return m.adaptive->run(m.D, options, corner_uv, m.stream, times);
+}
+
+void CudaEvaluator::adaptive_copy(float* positions, float* rest_positions, int* triangles, int* face_index,
+                                  int* triangle_patch, float* corner_normals, float* uvs, int* edge_segments,
+                                  int* patch_level) {
+  Impl& m = *impl_;
+  if (!m.adaptive) throw std::logic_error("adaptive_copy before an adaptive frame");
+  m.adaptive->copy(positions, rest_positions, triangles, face_index, triangle_patch, corner_normals, uvs,
+                   edge_segments, patch_level, m.stream);
 }
 
 }  // namespace cuda_impl

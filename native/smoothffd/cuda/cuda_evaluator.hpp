@@ -47,6 +47,7 @@
 #include <string>
 #include <utility>
 
+#include "smoothffd/cuda/adaptive_device.hpp"
 #include "smoothffd/cuda/cuda_error.hpp"
 #include "smoothffd/eval/evaluator.hpp"
 
@@ -111,6 +112,14 @@ class CudaEvaluator {
   size_t device_bytes() const;  // device memory held
   // The shared-memory limits the launches were planned with.
   DeviceLimits limits() const;
+
+  // Adaptive tessellation (adaptive_device.hpp): one frame from the control values D (host),
+  // options and the input's corner UVs (host, C x 2, or null) as eval/adaptive.hpp's; returns
+  // the sizes and adds the stage times; adaptive_copy then brings the arrays back.
+  AdaptiveSizes adaptive_frame(const float* D, const AdaptiveOptions& options, const float* corner_uv,
+                               StageTimes& times);
+  void adaptive_copy(float* positions, float* rest_positions, int* triangles, int* face_index, int* triangle_patch,
+                     float* corner_normals, float* uvs, int* edge_segments, int* patch_level);
 
   // ---- Hooks for tests and tools, not for users.
   // Fills the device outputs and intermediates with NaN (tests: every element must be

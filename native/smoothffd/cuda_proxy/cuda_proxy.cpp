@@ -159,6 +159,42 @@ StageTimes CudaEvaluator::evaluate_compact(const float* D, float* positions, flo
   return to_times(t);
 }
 
+AdaptiveMesh CudaEvaluator::adaptive_frame(const float* D, const float* corner_uv, const AdaptiveOptions& o) {
+  if (o.details) throw std::invalid_argument("adaptive_frame: details are a CPU test hook");
+  if ((o.min_edge_segments == nullptr) != (o.min_patch_level == nullptr))
+    throw std::invalid_argument("hold: expected both edge_segments and patch_level");
+  const Plan& p = *plan_;
+  sffd_cuda_error err{};
+  sffd_cuda_times t{};
+  int64_t N = 0, T = 0, capped = 0;
+  double max_bound = 0;
+  check(api_->adaptive_frame(handle_, D, o.tolerance, o.max_level, o.min_edge_segments, o.min_patch_level, corner_uv,
+                             o.normals ? 1 : 0, &N, &T, &max_bound, &capped, &t, &err),
+        err);
+  AdaptiveMesh a;
+  a.max_bound = max_bound;
+  a.capped = capped;
+  a.times = to_times(t);
+  a.edge_segments.resize(p.edges);
+  a.patch_level.resize(p.patches);
+  if (!o.counts_only) {
+    a.positions.resize(3 * (size_t)N);
+    a.rest_positions.resize(3 * (size_t)N);
+    a.triangles.resize(3 * (size_t)T);
+    a.face_index.resize(T);
+    a.triangle_patch.resize(T);
+    if (o.normals) a.corner_normals.resize(9 * (size_t)T);
+    if (corner_uv) a.uvs.resize(6 * (size_t)T);
+  }
+  auto ptr = [](auto& v) { return v.empty() ? nullptr : v.data(); };
+  check(api_->adaptive_copy(handle_, ptr(a.positions), ptr(a.rest_positions), ptr(a.triangles), ptr(a.face_index),
+                            ptr(a.triangle_patch), ptr(a.corner_normals), ptr(a.uvs), a.edge_segments.data(),
+                            a.patch_level.data(), &err),
+        err);
+  if (!o.counts_only) a.sharp_edges = adaptive_sharp_edges(p, a.edge_segments.data());
+  return a;
+}
+
 StageTimes CudaEvaluator::evaluate_positions(const float* D, float* positions, Frame frame) {
   return evaluate(D, positions, nullptr, frame);
 }

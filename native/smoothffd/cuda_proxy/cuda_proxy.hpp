@@ -19,6 +19,7 @@
 
 #include "smoothffd/cuda/cuda_api.h"
 #include "smoothffd/cuda/cuda_error.hpp"
+#include "smoothffd/eval/adaptive.hpp"
 #include "smoothffd/eval/evaluator.hpp"
 
 namespace sffd {
@@ -67,6 +68,10 @@ class CudaEvaluator : public Evaluator {
   size_t output_bytes() const;
   size_t device_bytes() const;
   sffd_cuda_limits limits() const;
+  // One adaptive frame on the device (cuda_api.h's adaptive_frame and adaptive_copy): the same
+  // mesh as the CPU's adaptive_frame (eval/adaptive.hpp), the same counts. options.threads is
+  // not used; details is not supported (the CPU's test hook).
+  AdaptiveMesh adaptive_frame(const float* D, const float* corner_uv, const AdaptiveOptions& options);
   // Testing (smoothffd._core._testing): the device outputs filled with NaN.
   void testing_poison();
 

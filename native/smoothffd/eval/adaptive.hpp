@@ -38,9 +38,11 @@ struct AdaptiveOptions {
   bool details = false;        // also patch_control and corner_bary (tests)
   // Held counts (E and P values, or null): each edge gets at least min_edge_segments[e]
   // segments and each patch exactly the level max(its uniform level, min_patch_level[p]), no
-  // higher: with the largest counts of several frames (a motion-blur shutter, a frame range)
-  // every one of those frames gets the same topology. A held frame's bound may then exceed the
-  // tolerance where a strip would have needed more (counted in AdaptiveMesh::capped).
+  // higher (its pattern the uniform grid when its edges all have that many segments): with
+  // the largest counts of several frames (a motion-blur shutter, a frame range) every one of
+  // those frames gets the same topology, and a frame's own counts give its own mesh. A held
+  // frame's bound may exceed the tolerance where a strip would have needed a higher level
+  // (counted in AdaptiveMesh::capped).
   const int* min_edge_segments = nullptr;
   const int* min_patch_level = nullptr;
   bool counts_only = false;    // decide the counts, emit nothing (edge_segments, patch_level)
@@ -70,6 +72,10 @@ struct AdaptiveMesh {
 // was built from), or null. Deterministic: the same D gives bitwise the same mesh for every
 // thread count and CPU.
 AdaptiveMesh adaptive_frame(const Plan& plan, const float* D, const float* corner_uv, const AdaptiveOptions& options);
+
+// The output edges along sub-edges whose normals split (K x 2 output vertices), for edge counts
+// `segments` (E values) numbered as adaptive_frame numbers its output vertices.
+std::vector<int> adaptive_sharp_edges(const Plan& plan, const int* segments);
 
 // The triangles of a patch's pattern for edge counts n[0..2] and interior level m (the uniform
 // grid when all three are m; else m >= 3), as barycentric points, T x 3 corners x 3, in the

@@ -291,6 +291,32 @@ def test_deform_estimates_the_fit_error(core, tmp_path, capsys):
     assert fe.max() > 0
 
 
+def test_deform_to_a_tolerance(core, tmp_path, capsys):
+    """--tolerance T --relative: the adaptive mesh, its bound in the progress line and stats, the
+    same triangles as the package's Deformer with that tolerance."""
+    lat = tmp_path / "l.json"
+    rc, _, err = run_main(["make-lattice", "--bbox-of", DATA / "vase.obj", "--twist", 60, "-o", lat], capsys)
+    assert rc == 0, err
+    out = tmp_path / "o.obj"
+    rc, stdout, err = run_main(["deform", DATA / "vase.obj", "--lattice", lat, "-o", out, "--tolerance", 1e-3,
+                                "--relative", "--device", "cpu", "--stats"], capsys)
+    assert rc == 0, err
+    m = re.search(r"tessellation bound (\S+) \(every triangle within it\)", err)
+    assert m, err
+    mesh = io.read_obj_mesh(DATA / "vase.obj")
+    size = float(np.linalg.norm(np.ptp(mesh.positions, axis=0)))
+    res = core.Deformer(mesh, lattice_json.load_lattice(lat), tolerance=1e-3 * size, device="cpu").deform()
+    stats = json.loads(stdout)
+    assert stats["output_triangles"] == len(res.triangles) and stats["tolerance_met"]
+    assert float(m.group(1)) == pytest.approx(res.stats["max_tessellation_bound"], rel=2e-3)  # 3 digits
+    assert 0 < res.stats["max_tessellation_bound"] <= 1e-3 * size
+    got = io.read_obj_mesh(out)
+    assert got.face_count == len(res.triangles)
+    assert "--tolerance 0.001 --relative" in open(out).readline()
+    uniform = core.Deformer(mesh, lattice_json.load_lattice(lat), level=10, device="cpu")
+    assert len(res.triangles) < uniform.plan.output_triangles
+
+
 # ---------------------------------------------------------------- one clear line, no traceback
 
 @pytest.mark.parametrize("argv,needle", [

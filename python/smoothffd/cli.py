@@ -198,12 +198,23 @@ def cmd_deform(args, progress):
         note["detail"] = (f"{args.input}: {mesh.vertex_count:,} vertices, "
                           f"{mesh.face_count:,} faces; {type(lattice).__name__} {shape}")
     with progress.stage("plan") as note:
-        deformer = Deformer(mesh, lattice, level=args.level, device=args.device,
-                                      threads=args.threads)
-        note["detail"] = f"level {args.level}, device {deformer.device}"
+        tolerance = None
+        if args.tolerance is not None:
+            size = float(np.linalg.norm(np.ptp(mesh.positions, axis=0))) or 1.0
+            tolerance = args.tolerance * (size if args.relative else 1.0)
+        deformer = Deformer(mesh, lattice, level=args.level, device=args.device, threads=args.threads,
+                            tolerance=tolerance, max_level=args.max_level)
+        how = (f"tolerance {tolerance:.3g}, at most {args.max_level} segments an edge" if tolerance
+               else f"level {args.level}")
+        note["detail"] = f"{how}, device {deformer.device}"
     with progress.stage("deform") as note:
         res = deformer.deform(estimate_error=args.estimate_error)
         note["detail"] = f"{len(res.triangles):,} triangles, {len(res.positions):,} vertices"
+        if tolerance:
+            met = ("every triangle within it" if res.stats["tolerance_met"] else
+                   f"not met where {res.stats['capped']} edges and patches reached --max-level")
+            note["detail"] += (f"; tessellation bound {res.stats['max_tessellation_bound']:.3g} ({met}), "
+                               f"levels up to {res.stats['max_patch_level']}")
         if args.estimate_error:
             size = float(np.linalg.norm(np.ptp(mesh.positions, axis=0))) or 1.0
             worst = int(np.argmax(res.face_error))
@@ -212,8 +223,10 @@ def cmd_deform(args, progress):
                                f"face {worst}), normals about {res.stats['max_face_normal_error_deg']:.3g} deg")
     with progress.stage("write") as note:
         _ensure_parent(args.output)
+        how = (f"--tolerance {args.tolerance:g}{' --relative' if args.relative else ''} "
+               f"--max-level {args.max_level}" if args.tolerance is not None else f"--level {args.level}")
         header = (f"smoothffd deform {os.path.basename(args.input)} "
-                  f"--lattice {os.path.basename(args.lattice)} --level {args.level}")
+                  f"--lattice {os.path.basename(args.lattice)} {how}")
         objio.write_result(args.output, res, header=header)
         note["detail"] = f"{args.output}, {os.path.getsize(args.output) / 2**20:.1f} MiB"
     if args.errors:
@@ -436,6 +449,13 @@ def build_parser():
     d.add_argument("--output", "-o", required=True, metavar="OUT.obj")
     d.add_argument("--level", type=int, default=10,
                    help="tessellation level L (L^2 triangles per patch; default 10)")
+    d.add_argument("--tolerance", type=float, metavar="T",
+                   help="adaptive tessellation instead of --level: every output triangle within T "
+                        "(object units) of the smooth patch it approximates")
+    d.add_argument("--relative", action="store_true",
+                   help="--tolerance as a fraction of the mesh's bounding-box diagonal")
+    d.add_argument("--max-level", type=int, default=64, metavar="M",
+                   help="with --tolerance: at most M segments a patch edge (default 64)")
     d.add_argument("--device", choices=_core_devices(), default="auto")
     d.add_argument("--threads", type=int, default=0, help="CPU threads (0: all cores)")
     d.add_argument("--stats", action="store_true",

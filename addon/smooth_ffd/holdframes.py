@@ -84,26 +84,6 @@ def clear(obj, mod):
     return True
 
 
-def motion_blur(scene):
-    """Whether the scene renders motion blur (Cycles and, from 4.2, EEVEE: render settings;
-    EEVEE before 4.2: its own)."""
-    eevee = getattr(scene, "eevee", None)
-    return bool(scene.render.use_motion_blur or getattr(eevee, "use_motion_blur", False))
-
-
-def shutter(scene):
-    """(first, last) frame times of the shutter of the frame shown."""
-    frame = scene.frame_current + scene.frame_subframe
-    length = float(scene.render.motion_blur_shutter)
-    position = getattr(scene.render, "motion_blur_position", None) or \
-        getattr(getattr(scene, "cycles", None), "motion_blur_position", None) or "CENTER"
-    if position == 'START':
-        return frame, frame + length
-    if position == 'END':
-        return frame - length, frame
-    return frame - length / 2, frame + length / 2
-
-
 def hold_shutter(scene, modifiers):
     """Before a render with motion blur: each modifier whose render tessellation is adaptive,
     and whose frame no held range covers, gets the counts over the frame's shutter (in memory,
@@ -112,9 +92,9 @@ def hold_shutter(scene, modifiers):
     and gets none (hold the frames instead). Returns {(object name, modifier name): note}
     for the modifiers that got none because of an error."""
     notes = {}
-    if not motion_blur(scene) or threading.current_thread() is not threading.main_thread():
+    if not holds.motion_blur(scene) or threading.current_thread() is not threading.main_thread():
         return notes
-    lo, hi = shutter(scene)
+    lo, hi = holds.shutter(scene)
     frame = scene.frame_current + scene.frame_subframe
     times = []
     for i in range(SHUTTER_SAMPLES):
@@ -131,8 +111,8 @@ def hold_shutter(scene, modifiers):
                     continue
                 try:
                     found = _counts_over(obj, mod, scene, times, ("render",))
-                except (RuntimeError, inputs.SmoothFFDError) as e:
-                    notes[(obj.name, mod.name)] = str(e)
+                except Exception as e:   # never stops the render: that frame is not held
+                    notes[(obj.name, mod.name)] = f"{type(e).__name__}: {e}"
                     continue
                 if "render" not in found:
                     continue

@@ -88,6 +88,26 @@ def lookup(ro, st, render, frame, plan_token, setting):
     return None, None
 
 
+def motion_blur(scene):
+    """Whether the scene renders motion blur (Cycles and, from 4.2, EEVEE: render settings;
+    EEVEE before 4.2: its own)."""
+    eevee = getattr(scene, "eevee", None)
+    return bool(scene.render.use_motion_blur or getattr(eevee, "use_motion_blur", False))
+
+
+def shutter(scene):
+    """(first, last) frame times of the shutter of the frame shown."""
+    frame = scene.frame_current + scene.frame_subframe
+    length = float(scene.render.motion_blur_shutter)
+    position = getattr(scene.render, "motion_blur_position", None) or \
+        getattr(getattr(scene, "cycles", None), "motion_blur_position", None) or "CENTER"
+    if position == 'START':
+        return frame, frame + length
+    if position == 'END':
+        return frame - length, frame
+    return frame - length / 2, frame + length / 2
+
+
 def maximum(a, b):
     return b if a is None else {n: np.maximum(a[n], b[n]) for n in NAMES}
 

@@ -68,6 +68,11 @@ def update_modifier(obj, mod, p):
         plan_key = plans.ensure_plan(st, got.source, lattice, got.level, got.backend, tess)
         hold, hold_note = holds.lookup(ro, st, render, frame, holds.token(plan_key),
                                        tess.setting) if tess.adaptive else (None, None)
+        if tess.adaptive and render and hold is None and hold_note is None and \
+                p.scene is not None and holds.motion_blur(p.scene):
+            hold_note = ("motion blur: counts not held over the shutter (renders hold them "
+                         "when started in the main thread: command line, scripts; else Hold "
+                         "Tessellation)")
         res = plans.frame(st, lattice, exact, hold)
         # The fit error bound (a face attribute, its maximum in the status): with exact
         # results, not while an animation plays (it costs about one more CPU frame).

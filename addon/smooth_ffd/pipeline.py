@@ -145,8 +145,6 @@ def _adaptive_status(used, got, res, hold_note, tail):
     met = "tolerance met" if stats.get("tolerance_met") else \
         f"tolerance not met at max level {tess.max_level}"
     notes = [n for n in (hold_note, tess.note) if n]
-    if got.backend == "cuda":
-        notes.append("tolerance modes run on the CPU")
     tail = tail.replace(" tris,", f" tris, {met},", 1)
     return head, tail + "".join(f", {n}" for n in notes)
 

@@ -40,19 +40,17 @@ class _progress:
 
 def ensure_plan(st, source, lattice, level, backend, tess=None):
     """st.deformer for these inputs: the cached one while its key holds, else a new plan.
-    Returns the plan's key. tess (tessellation.Tess) adaptive: one adaptive plan on the CPU
-    (the core's adaptive frames run there) serves every tolerance and max level, which are
-    set on it for each frame (the plan does not depend on them: a camera moving in Screen
-    mode replans nothing)."""
+    Returns the plan's key. tess (tessellation.Tess) adaptive: one adaptive plan on the
+    backend serves every tolerance and max level, which are set on it for each frame (the
+    plan does not depend on them: a camera moving in Screen mode replans nothing)."""
     adaptive = tess is not None and tess.adaptive
-    plan_key = (source.key, lattice.structure_key(), "adaptive", "cpu") if adaptive else \
-        (source.key, lattice.structure_key(), level, backend)
+    plan_key = (source.key, lattice.structure_key(), "adaptive" if adaptive else level, backend)
     if st.deformer is None or st.plan_key != plan_key:
         st.deformer = st.result = None
         st.outs = {}
         long = len(source.corner_vertices) * (1 if adaptive else level * level) > 2_000_000
         with _progress(long):
-            st.deformer = core.make_deformer(source, lattice, level, "cpu" if adaptive else backend,
+            st.deformer = core.make_deformer(source, lattice, level, backend,
                                              tess.tolerance if adaptive else None,
                                              tess.max_level if adaptive else None)
         st.plan_key = plan_key

@@ -1,5 +1,5 @@
 """How finely an update tessellates: a fixed level, or adaptively to a tolerance (the core's
-Deformer(tolerance=..., max_level=...), CPU only), for the viewport and the render separately
+Deformer(tolerance=..., max_level=...) on the Backend's device), for the viewport and the render separately
 (the group's tessellation inputs, nodegroup.TESS_INPUTS). The render's Screen mode turns a
 pixel size into an object-space tolerance on every update, from the scene's render camera:
 the world size of one pixel at the depth of the object's nearest point (its source's and its

@@ -2,7 +2,15 @@
 paper's values, convergence plots, and timings like Tables 1, 5 and 6 (CPU here; the GPU
 figures are taken from docs/benchmarks.md when it exists). Run through scripts/report.sh.
 
-    PYTHONPATH=python python3 scripts/report.py [--quick] [--no-bench]
+    PYTHONPATH=python python3 scripts/report.py [--quick] [--no-bench] [--adaptive-json PATH]
+                                                [--adaptive-only]
+
+--adaptive-only rewrites only the "Adaptive tessellation" section (bench/bench_adaptive.py's
+table, plot and wireframes), e.g. from an earlier run's JSON:
+
+    PYTHONPATH=python:tests:bench python3 bench/bench_adaptive.py --json /tmp/adaptive.json \
+        > /tmp/adaptive.txt
+    bash scripts/report.sh --adaptive-only --adaptive-json /tmp/adaptive.json
 
 Errors follow the paper's definitions (sec. 6.3), measured by tests/reference.py:
 geometry = distance between each output vertex and the exact FFD image of its rest point on
@@ -12,6 +20,8 @@ enclosed volume against the integral of det J over the cube.
 """
 import argparse
 import datetime
+import json
+import math
 import os
 import platform
 import re
@@ -325,6 +335,267 @@ def gpu_table():
             table.group(1).strip() if table else None)
 
 
+# --- adaptive tessellation ------------------------------------------------------------------------
+
+ADAPTIVE_PLOT_WORKLOADS = ("w1", "vase", "figure", "suzanne")
+
+
+def bench_adaptive(quick, json_path=None):
+    """bench/bench_adaptive.py's rows: from json_path when given (an earlier run's --json), else
+    a fresh run. (rows dict or None, its printed output or an error)."""
+    if json_path:
+        with open(json_path) as f:
+            data = json.load(f)
+        txt = os.path.splitext(json_path)[0] + ".txt"
+        return data, (open(txt).read() if os.path.exists(txt) else None)
+    import tempfile
+
+    out = os.path.join(tempfile.mkdtemp(prefix="report_adaptive_"), "adaptive.json")
+    cmd = [sys.executable, os.path.join(ROOT, "bench", "bench_adaptive.py"), "--json", out]
+    if quick:
+        cmd += ["--workloads", "vase", "suzanne", "figure", "--levels", "2", "4", "8",
+                "--repeats", "3"]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        os.path.join(ROOT, d) for d in ("python", "tests", "bench")))
+    p = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=ROOT, timeout=3600)
+    if p.returncode != 0:
+        return None, p.stderr[-2000:]
+    with open(out) as f:
+        return json.load(f), p.stdout
+
+
+def adaptive_plot(data):
+    """True tessellation error (relative to the diagonal) against output triangles."""
+    rows = data["rows"]
+    names = [n for n in ADAPTIVE_PLOT_WORKLOADS if any(r["workload"] == n for r in rows)][:3]
+    fig, ax = plt.subplots(figsize=(6.4, 4.0), dpi=90)
+    for name in names:
+        rs = sorted((r for r in rows if r["workload"] == name), key=lambda r: r["level"])
+        d = rs[0]["diagonal"]
+        ax.plot([r["uniform_triangles"] for r in rs], [r["uniform_error"] / d for r in rs], "o-",
+                ms=4, label=f"{name}: uniform, L = {', '.join(str(r['level']) for r in rs)}")
+        for r in rs:
+            ax.annotate(str(r["level"]), (r["uniform_triangles"], r["uniform_error"] / d),
+                        textcoords="offset points", xytext=(3, 3), fontsize=6,
+                        color=ax.lines[-1].get_color())
+        ax.plot([r["adaptive_triangles"] for r in rs], [r["adaptive_error"] / d for r in rs], "s--",
+                ms=4, mfc="none", color=ax.lines[-1].get_color(),
+                label=f"{name}: adaptive, t = e_L")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("output triangles", fontsize=8)
+    ax.set_ylabel("true max tessellation error / bounding-box diagonal", fontsize=8)
+    ax.tick_params(labelsize=7)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=6.5, loc="best")
+    ax.set_title("Tessellation error against triangles (dense sampling)", fontsize=9)
+    fig.tight_layout()
+    path = os.path.join(IMAGES, "results_adaptive_error_vs_triangles.png")
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def _wire_panel(ax, positions, triangles, direction, title):
+    """Orthographic view along -direction: back faces culled, the rest painted far to near,
+    shaded by their own normal, with their edges."""
+    from matplotlib.collections import PolyCollection
+
+    d = np.asarray(direction, float)
+    d /= np.linalg.norm(d)
+    right = np.cross(-d, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, -d)
+    P = np.asarray(positions, np.float64)[np.asarray(triangles)]           # (T, 3, 3)
+    n = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    keep = n @ d > 0
+    P, n = P[keep], n[keep]
+    order = np.argsort(P.mean(axis=1) @ d)
+    P, n = P[order], n[order]
+    light = d + 0.6 * up + 0.3 * right
+    light /= np.linalg.norm(light)
+    g = 0.45 + 0.5 * np.clip(n @ light, 0, 1)
+    xy = np.stack([P @ right, P @ up], axis=-1)
+    ax.add_collection(PolyCollection(xy, facecolors=np.stack([g * 0.93, g * 0.95, g], 1),
+                                     edgecolors=(0.1, 0.15, 0.35), linewidths=0.15))
+    lo, hi = xy.reshape(-1, 2).min(0), xy.reshape(-1, 2).max(0)
+    pad = 0.03 * (hi - lo).max()
+    ax.set_xlim(lo[0] - pad, hi[0] + pad)
+    ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    ax.set_aspect("equal")
+    ax.axis("off")
+    ax.set_title(title, fontsize=8)
+
+
+def adaptive_wireframes(level=4):
+    """Uniform level L beside adaptive at t = e_L (the uniform output's true error) on the vase
+    scene and on Suzanne: (path, caption facts) per mesh."""
+    import bench_adaptive as ba
+    import test_adaptive as ta
+
+    out = []
+    for name, direction, fname in (
+            ("vase", (math.sin(math.radians(20)) * math.cos(math.radians(30)),
+                      -math.cos(math.radians(20)) * math.cos(math.radians(30)),
+                      math.sin(math.radians(30))), "results_adaptive_wire_vase.png"),
+            ("suzanne", (math.sin(math.radians(-25)) * math.cos(math.radians(12)),
+                         -math.cos(math.radians(-25)) * math.cos(math.radians(12)),
+                         math.sin(math.radians(12))), "results_adaptive_wire_suzanne.png")):
+        mesh, lat, _ = ba.workload(name)
+        ad = smoothffd.Deformer(mesh, lat, device="cpu", tolerance=1.0)
+        e = ta.uniform_error(ba.patch_control(ad, lat), level)
+        uni = smoothffd.Deformer(mesh, lat, level=level, device="cpu").deform(lat)
+        ad = smoothffd.Deformer(mesh, lat, device="cpu", tolerance=e)
+        res = ad.deform(lat)
+        fig, axes = plt.subplots(1, 2, figsize=(8.0, 4.2), dpi=90)
+        _wire_panel(axes[0], uni.positions, uni.triangles, direction,
+                    f"uniform L = {level}: {len(uni.triangles):,} triangles")
+        _wire_panel(axes[1], res.positions, res.triangles, direction,
+                    f"adaptive, t = e_{level} = {e:.3g}: {len(res.triangles):,} triangles")
+        fig.tight_layout()
+        path = os.path.join(IMAGES, fname)
+        fig.savefig(path)
+        plt.close(fig)
+        out.append((name, path, dict(level=level, tolerance=e, diagonal=ba.diagonal(mesh),
+                                     uniform=len(uni.triangles), adaptive=len(res.triangles))))
+    return out
+
+
+def adaptive_section(data, printed, err, wires, quick):
+    """docs/results.md's "Adaptive tessellation" section (list of lines)."""
+    L = ["## Adaptive tessellation", ""]
+    w = L.append
+    if data is None:
+        w(f"(bench/bench_adaptive.py did not run: {err})")
+        w("")
+        return L
+    rows = data["rows"]
+    w("`Deformer(mesh, lattice, tolerance=t)` tessellates each patch edge and interior as finely "
+      "as its bounds say is needed for every output triangle to lie within t of the cubic patch "
+      "it approximates (recomputed each frame; measured here on the CPU). `bench/bench_adaptive.py` "
+      "compares it with the uniform levels on the same patches: for each level L it measures the "
+      "uniform output's true maximum tessellation error e_L (the largest distance between a "
+      "triangle and its patch, by dense sampling: 28 points a triangle, "
+      "`tests/test_adaptive.py`), runs the adaptive tessellation at t = e_L and measures its own "
+      "true maximum error the same way: with the output's float32 positions (*worst / t*) and "
+      "with its triangles' corners evaluated on their patches in float64 (*float64 corners*, as "
+      "e_L is measured for the uniform triangles: the like-for-like figure). Times: one `Deformer.deform` each with the plan reused, "
+      f"median of {data['repeats']} frames, uniform and adaptive alternating in the same process, "
+      f"on this machine ({data['cores']} cores, shared), {data.get('date', '?')}, commit "
+      f"{data.get('commit', '?')}; fresh result arrays with per-corner normals.")
+    w("")
+    import bench_adaptive as ba
+
+    present = list(dict.fromkeys(r["workload"] for r in rows))
+    parts = []
+    w1 = [r for r in rows if r["workload"] == "w1"]
+    if w1:
+        parts.append("W1 (the timing workload below; errors on " + (
+            f"{w1[0]['error_patches']:,} random patches of its {w1[0]['patches']:,}, the counts "
+            "and times on all)" if w1[0]["error_patches"] < w1[0]["patches"] else "all patches)"))
+    scenes = [n for n in present if n in ba.SCENES]
+    if scenes:
+        parts.append("the demo scenes whose meshes are plain numpy (`blender_scenes/shapes.py`: "
+                     + ", ".join(scenes) + "), each with its scene's B-spline lattice as "
+                     "`smoothffd.BlenderLattice` and its sharp edges as split normals")
+    corpus = [n for n in present if n in ba.REAL]
+    if corpus:
+        parts.append("meshes of `tests/data/real` (" + ", ".join(corpus) + ") under a random "
+                     "5x5x5 quadratic lattice (seed 7, condition number under 2)")
+    w("Workloads: " + "; ".join(parts) + ". Not here: " + "; ".join(data.get("skipped", []))
+      + ", which need Blender to build.")
+    w("")
+    w("![error vs triangles](images/results_adaptive_error_vs_triangles.png)")
+    w("")
+    w("| workload | L | t = e_L / diagonal | uniform triangles | adaptive triangles | adaptive / "
+      "uniform | uniform ms | adaptive ms | worst / t | float64 corners |")
+    w("|---|---|---|---|---|---|---|---|---|---|")
+    last = None
+    for r in rows:
+        name = r["workload"] if r["workload"] != last else ""
+        last = r["workload"]
+        ratio = f"**{r['ratio']:.2f}**" if r["ratio"] < 1 else f"{r['ratio']:.2f}"
+        w(f"| {name} | {r['level']} | {r['tolerance_rel']:.2e} | {r['uniform_triangles']:,} | "
+          f"{r['adaptive_triangles']:,} | {ratio} | {r['uniform_ms']:.1f} | {r['adaptive_ms']:.1f} | "
+          f"{r['adaptive_error_over_t']:.2f} | {r['adaptive_error_f64_corners'] / r['tolerance']:.2f} |")
+    w("")
+    by = {}
+    for r in rows:
+        by.setdefault(r["workload"], []).append(r)
+    best = {n: min(rs, key=lambda r: r["ratio"]) for n, rs in by.items()}
+    w64 = [r["adaptive_error_f64_corners"] / r["tolerance"] for r in rows]
+    over = [r for r in rows if r["adaptive_error_over_t"] > 1]
+    w(f"With float64 corners every adaptive tessellation is within its tolerance (worst / t "
+      f"{min(w64):.2f}-{max(w64):.2f}). "
+      + (("The float32 output positions exceed it in "
+          + ", ".join(f"{r['workload']} L = {r['level']} ({r['adaptive_error_over_t']:.2f} t at "
+                      f"t = {r['tolerance_rel']:.2g} of the diagonal)" for r in over)
+          + ": t is then only a few float32 steps of the output's coordinates (a step is 1.2e-7 "
+          "at 1-2 units), and the positions' rounding, not the tessellation, makes the excess. ")
+         if over else "")
+      + "Adaptive / uniform at its lowest for each workload: "
+      + ", ".join(f"{n} {b['ratio']:.2f} (L = {b['level']})" for n, b in best.items()) + ".")
+    w("")
+    more = [r for r in rows if r["ratio"] > 1]
+    if more:
+        groups = {}
+        for r in more:
+            groups.setdefault(r["workload"], []).append(r)
+        coarse = [r["adaptive_error_over_t"] for r in rows if r["level"] == min(x["level"] for x in rows)]
+        w("More triangles than the uniform level: "
+          + "; ".join(f"{n} at L = {', '.join(str(r['level']) for r in g)} ("
+                      + (f"{g[0]['ratio']:.2f}" if len(g) == 1 else
+                         f"{min(r['ratio'] for r in g):.2f}-{max(r['ratio'] for r in g):.2f}") + ")"
+                      for n, g in groups.items())
+          + ". The adaptive tessellation decides by bounds, which lie above the true error, "
+          f"most at the coarsest tolerance (there its worst triangle is {min(coarse):.2f}-"
+          f"{max(coarse):.2f} t); and where every patch bends about alike (the corpus torus, the "
+          "knot-box slab under its waves) a uniform level is already close to what each patch "
+          "needs.")
+        w("")
+    sp = [r["adaptive_ms"] / r["uniform_ms"] for r in rows]
+    w(f"Time: an adaptive frame took {min(sp):.1f}-{max(sp):.1f} times the uniform frame of the "
+      "same error here: its counts, bounds and triangles are computed for every frame on the "
+      "CPU, where a uniform frame fills a topology fixed by the plan.")
+    w("")
+    for name, path, f in wires:
+        w(f"![adaptive wireframe, {name}](images/{os.path.basename(path)})")
+        w("")
+    if wires:
+        w("Wireframes: uniform level " + str(wires[0][2]["level"]) + " beside the adaptive "
+          "tessellation at that level's true error, " + "; ".join(
+              f"{n} t = {f['tolerance']:.3g} ({f['tolerance'] / f['diagonal']:.2e} of the diagonal): "
+              f"{f['uniform']:,} against {f['adaptive']:,} triangles" for n, _, f in wires)
+          + " (the vase scene's lattice; Suzanne from `tests/data/real` under the random lattice "
+          "above; orthographic, back faces culled).")
+        w("")
+    if printed:
+        w("<details><summary>bench/bench_adaptive.py output</summary>")
+        w("")
+        w("```")
+        w(printed.strip())
+        w("```")
+        w("")
+        w("</details>")
+        w("")
+    return L
+
+
+def splice_section(text, lines, heading="## Adaptive tessellation", before="## Timings"):
+    """text with the section `heading` replaced by lines (inserted before `before` if absent)."""
+    block = "\n".join(lines) + "\n"
+    start = text.find(heading + "\n")
+    if start >= 0:
+        end = text.find("\n## ", start + len(heading))
+        end = len(text) if end < 0 else end + 1
+        return text[:start] + block + text[end:]
+    at = text.find(before)
+    if at < 0:
+        return text.rstrip("\n") + "\n\n" + block
+    return text[:at] + block + text[at:]
+
+
 # --- the document ------------------------------------------------------------------------------
 
 def cpu_name():
@@ -399,7 +670,8 @@ def quality_table():
     return qc.table(qc.measure_all())
 
 
-def write(rows, sw, plot_paths, bench, bench_err, vase, gpu, elapsed, quick, quality_rows=""):
+def write(rows, sw, plot_paths, bench, bench_err, vase, gpu, elapsed, quick, quality_rows="",
+          adaptive_lines=()):
     now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     dev = f"{cpu_name()}, {os.cpu_count()} logical cores (shared with other jobs)"
     L = []
@@ -505,6 +777,8 @@ def write(rows, sw, plot_paths, bench, bench_err, vase, gpu, elapsed, quick, qua
     w("")
     for line in real_meshes_section(quality_rows):
         w(line)
+    for line in adaptive_lines:
+        w(line)
     w("## Timings (paper Tables 1, 5, 6)")
     w("")
     w(f"CPU, this machine: {dev}, {now}. `bench/bench_cpu.py` (the Table 1 workload W1: a "
@@ -557,8 +831,30 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="fewer points (a smoke run)")
     ap.add_argument("--no-bench", action="store_true")
+    ap.add_argument("--adaptive-json", metavar="PATH",
+                    help="the adaptive section from an earlier bench/bench_adaptive.py --json PATH "
+                         "run (its printed output from PATH with .txt, if there) instead of a new run")
+    ap.add_argument("--adaptive-only", action="store_true",
+                    help="regenerate only the \"Adaptive tessellation\" section of docs/results.md "
+                         "and its images, leaving the rest of the file as it is")
     a = ap.parse_args()
     t0 = time.perf_counter()
+    os.makedirs(IMAGES, exist_ok=True)
+    print("adaptive tessellation (bench/bench_adaptive.py)...")
+    adata, aout = bench_adaptive(a.quick, a.adaptive_json)
+    adaptive_paths = [adaptive_plot(adata)] if adata else []
+    wires = adaptive_wireframes()
+    adaptive_paths += [p for _, p, _ in wires]
+    adaptive_lines = adaptive_section(adata, aout if adata else None, aout, wires, a.quick)
+    if a.adaptive_only:
+        path = os.path.join(DOCS, "results.md")
+        with open(path) as f:
+            text = f.read()
+        with open(path, "w") as f:
+            f.write(splice_section(text, adaptive_lines))
+        print("wrote the adaptive section of docs/results.md and",
+              ", ".join(os.path.relpath(p, ROOT) for p in adaptive_paths))
+        return
     print("errors (Tables 2-4)...")
     rows = error_tables(a.quick)
     print("sweeps...")
@@ -568,8 +864,9 @@ def main():
     vase = vase_timing()
     print("real meshes (scripts/quality_corpus.py)...")
     quality = quality_table()
-    write(rows, sw, paths, bench, err, vase, gpu_table(), time.perf_counter() - t0, a.quick, quality)
-    print("wrote docs/results.md and", ", ".join(os.path.relpath(p, ROOT) for p in paths))
+    write(rows, sw, paths, bench, err, vase, gpu_table(), time.perf_counter() - t0, a.quick, quality,
+          adaptive_lines)
+    print("wrote docs/results.md and", ", ".join(os.path.relpath(p, ROOT) for p in paths + adaptive_paths))
 
 
 if __name__ == "__main__":

@@ -31,8 +31,8 @@ SFFD_HD T amin(T a, T b) { return b < a ? b : a; }
 // norm of a function linear in x), so the first term is at most 1/2 max_l sum l_i l_j Q_ij
 // (simplex_max) with Q_ij that largest value for the edge v_i - v_j. With v_i - x =
 // sum_j l_j (v_i - v_j), |D3f[v_i - x]| <= (1 - l_i)^3 tau, tau the largest |D3f[a, b, c]|
-// over edges a, b, c of the triangle, and sum l_i (1 - l_i)^3 <= 0.3 on the simplex: the second
-// term is at most 0.05 tau.
+// over edges a, b, c of the triangle (third_bound), and sum l_i (1 - l_i)^3 <= 0.3 on the
+// simplex: the second term is at most 0.05 tau.
 
 struct D3 {
   double x, y, z;
@@ -43,6 +43,7 @@ SFFD_HD double norm(D3 a) { return sqrt(a.x * a.x + a.y * a.y + a.z * a.z); }
 
 struct Power {
   D3 a[10];  // CubicPowerTerm order
+  D3 t[4];   // D3f along s s s, s s t, s t t, t t t (6 a30, 2 a21, 2 a12, 6 a03): constant
 };
 
 SFFD_HD Power power_of(const float* cp) {
@@ -52,6 +53,10 @@ SFFD_HD Power power_of(const float* cp) {
     for (int r = 0; r < 3; ++r) b[r][k] = cp[3 * k + r];
   for (int r = 0; r < 3; ++r) cubic_power_form<double>(b[r], a[r]);
   for (int k = 0; k < 10; ++k) p.a[k] = {a[0][k], a[1][k], a[2][k]};
+  p.t[0] = 6.0 * p.a[kA30];
+  p.t[1] = 2.0 * p.a[kA21];
+  p.t[2] = 2.0 * p.a[kA12];
+  p.t[3] = 6.0 * p.a[kA03];
   return p;
 }
 
@@ -64,11 +69,21 @@ SFFD_HD D3 second(const Power& p, const double st[2], const double w[2]) {
   return (w[0] * w[0]) * fss + (2.0 * w[0] * w[1]) * fst + (w[1] * w[1]) * ftt;
 }
 
-// D3f[u, v, w] (constant for a cubic).
-SFFD_HD D3 third(const Power& p, const double u[2], const double v[2], const double w[2]) {
-  const D3 sss = 6.0 * p.a[kA30], sst = 2.0 * p.a[kA21], stt = 2.0 * p.a[kA12], ttt = 6.0 * p.a[kA03];
-  return (u[0] * v[0] * w[0]) * sss + (u[0] * v[0] * w[1] + u[0] * v[1] * w[0] + u[1] * v[0] * w[0]) * sst +
-         (u[0] * v[1] * w[1] + u[1] * v[0] * w[1] + u[1] * v[1] * w[0]) * stt + (u[1] * v[1] * w[1]) * ttt;
+SFFD_HD double norm2(D3 a) { return a.x * a.x + a.y * a.y + a.z * a.z; }
+
+// tau: the largest |D3f[a, b, c]| over edges a, b, c of e[0..2] (D3f is constant for a cubic).
+SFFD_HD double third_bound(const Power& p, const double e[3][2]) {
+  double worst = 0;
+  for (int i = 0; i < 3; ++i)
+    for (int j = i; j < 3; ++j)
+      for (int k = j; k < 3; ++k) {
+        const double *u = e[i], *v = e[j], *w = e[k];
+        const D3 d = (u[0] * v[0] * w[0]) * p.t[0] + (u[0] * v[0] * w[1] + u[0] * v[1] * w[0] + u[1] * v[0] * w[0]) * p.t[1] +
+                     (u[0] * v[1] * w[1] + u[1] * v[0] * w[1] + u[1] * v[1] * w[0]) * p.t[2] +
+                     (u[1] * v[1] * w[1]) * p.t[3];
+        worst = amax(worst, norm2(d));
+      }
+  return sqrt(worst);
 }
 
 // max over the simplex of q01 l0 l1 + q02 l0 l2 + q12 l1 l2 (q >= 0): an edge's midpoint or the
@@ -92,11 +107,7 @@ SFFD_HD double bound_core(const Power& p, const double e[3][2], const double (*r
     q[k] = 0;
     for (int r = 0; r < n; ++r) q[k] = amax(q[k], norm(second(p, region[r], e[k])));
   }
-  double tau = 0;
-  for (int a = 0; a < 3; ++a)
-    for (int b = a; b < 3; ++b)
-      for (int c = b; c < 3; ++c) tau = amax(tau, norm(third(p, e[a], e[b], e[c])));
-  return 0.5 * simplex_max(q[0], q[1], q[2]) + 0.05 * tau;
+  return 0.5 * simplex_max(q[0], q[1], q[2]) + 0.05 * third_bound(p, e);
 }
 
 // For a triangle the second derivative along edge ij is bounded where it is used: at x,
@@ -115,11 +126,7 @@ SFFD_HD double triangle_bound_p(const Power& p, const double st[3][2]) {
     A[q] = amax(norm(second(p, st[i], e[q])), norm(second(p, st[j], e[q])));
     B += fmax(0.0, norm(second(p, st[k], e[q])) - A[q]);
   }
-  double tau = 0;
-  for (int a = 0; a < 3; ++a)
-    for (int b = a; b < 3; ++b)
-      for (int c = b; c < 3; ++c) tau = amax(tau, norm(third(p, e[a], e[b], e[c])));
-  return 0.5 * (simplex_max(A[0], A[1], A[2]) + B / 27.0) + 0.05 * tau;
+  return 0.5 * (simplex_max(A[0], A[1], A[2]) + B / 27.0) + 0.05 * third_bound(p, e);
 }
 
 SFFD_HD double uniform_bound_p(const Power& p, int m) {
@@ -278,10 +285,12 @@ SFFD_HD void for_each_triangle(const PatchShape& sh, Emit&& emit) {
   for_each_strip_triangle(sh, emit);
 }
 
-// The largest strip triangle bound of the pattern (its inner grid is within uniform_bound).
-SFFD_HD double strip_bound(const Power& p, const PatchShape& sh) {
+// The largest strip triangle bound of the pattern, or the first one above `stop` (its inner
+// grid is within uniform_bound).
+SFFD_HD double strip_bound(const Power& p, const PatchShape& sh, double stop) {
   double worst = 0;
   for_each_strip_triangle(sh, [&](const LocalPoint& a, const LocalPoint& b, const LocalPoint& c) {
+    if (worst > stop) return;
     const LocalPoint t[3] = {a, b, c};
     double st[3][2];
     for (int k = 0; k < 3; ++k) {
@@ -321,8 +330,9 @@ SFFD_HD PatchShape patch_shape(const Power& p, int m0, const int n[3], double to
       bound = uniform_bound_p(p, sh.m);
       return sh;
     }
-    const double b = amax(strip_bound(p, sh), uniform_bound_p(p, sh.m));
-    if (b <= tol || sh.m >= amax(max_level, 3)) {
+    const bool last = sh.m >= amax(max_level, 3);
+    const double b = amax(strip_bound(p, sh, last ? HUGE_VAL : tol), uniform_bound_p(p, sh.m));
+    if (b <= tol || last) {
       bound = b;
       return sh;
     }

@@ -1,7 +1,7 @@
-"""Adaptive tessellation against uniform levels: triangles, time and true error (CPU).
+"""Adaptive tessellation against uniform levels: triangles, time and true error (CPU or CUDA).
 
     PYTHONPATH=python:tests:bench python3 bench/bench_adaptive.py [--workloads w1 vase suzanne ...]
-        [--levels 2 3 4 6 8 10] [--repeats 5] [--error-patches 8000] [--json PATH]
+        [--levels 2 3 4 6 8 10] [--repeats 5] [--error-patches 8000] [--device cpu|cuda] [--json PATH]
 
 For each workload and uniform level L: the uniform output's true tessellation error e_L (the
 largest distance between its triangles and the cubic patches they approximate, by dense
@@ -189,10 +189,10 @@ def timed(fn):
     return (time.perf_counter() - t0) * 1e3, out
 
 
-def run_workload(name, levels, repeats, error_patches, rng_seed=1):
+def run_workload(name, levels, repeats, error_patches, rng_seed=1, device="cpu"):
     mesh, lat, desc = workload(name)
     diag = diagonal(mesh)
-    ad = smoothffd.Deformer(mesh, lat, device="cpu", tolerance=1.0)
+    ad = smoothffd.Deformer(mesh, lat, device=device, tolerance=1.0)
     cp = patch_control(ad, lat)
     P = len(cp)
     subset, sel = None, slice(None)
@@ -201,14 +201,14 @@ def run_workload(name, levels, repeats, error_patches, rng_seed=1):
         subset = np.zeros(P, bool)
         subset[idx] = True
         sel = idx
-    print(f"\n{name}: {desc}; {mesh.face_count} faces, {P} patches, bounding-box diagonal {diag:.4g}"
+    print(f"\n{name} on {ad.device}: {desc}; {mesh.face_count} faces, {P} patches, bounding-box diagonal {diag:.4g}"
           + (f"; errors measured on {error_patches} random patches of {P}" if subset is not None else ""))
     print(f"{'L':>3} {'t = e_L':>10} {'t/diag':>9} {'uni tris':>10} {'uni ms':>8} {'ada tris':>10} "
           f"{'ada/uni':>7} {'ada ms':>8} {'worst/t':>7} {'f64/t':>6} {'levels':>7}")
     rows = []
     for L in levels:
         e_L = ta.uniform_error(cp[sel], L)
-        uni = smoothffd.Deformer(mesh, lat, level=L, device="cpu")
+        uni = smoothffd.Deformer(mesh, lat, level=L, device=device)
         ad.tolerance = e_L  # the plan does not depend on the tolerance: one adaptive Deformer
         uni.deform(lat)
         ad.deform(lat)      # warm-up, untimed
@@ -220,7 +220,7 @@ def run_workload(name, levels, repeats, error_patches, rng_seed=1):
             ta_.append(ms)
         worst, worst64, maxlev, medlev = adaptive_worst(ad, lat, e_L, subset)
         T_u, T_a = len(ru.triangles), len(ra.triangles)
-        row = dict(workload=name, description=desc, faces=mesh.face_count, patches=P, diagonal=diag,
+        row = dict(workload=name, device=ad.device, description=desc, faces=mesh.face_count, patches=P, diagonal=diag,
                    error_patches=int(P if subset is None else error_patches), level=L,
                    uniform_error=e_L, tolerance=e_L, tolerance_rel=e_L / diag,
                    uniform_triangles=T_u, uniform_ms=statistics.median(tu),
@@ -256,11 +256,15 @@ def main():
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--error-patches", type=int, default=8000,
                     help="measure errors on at most this many random patches of a workload")
+    ap.add_argument("--device", choices=("cpu", "cuda"), default="cpu",
+                    help="where both the uniform and the adaptive frames run (cuda: raises without a GPU)")
     ap.add_argument("--json", metavar="PATH", help="write the rows as JSON")
     a = ap.parse_args()
     t0 = time.perf_counter()
     started = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    print(f"Adaptive vs uniform tessellation, CPU: {platform.machine()}, {os.cpu_count()} cores; "
+    where = (f"CUDA: {smoothffd.cuda_status()[1]}" if a.device == "cuda" else
+             f"CPU: {platform.machine()}, {os.cpu_count()} cores")
+    print(f"Adaptive vs uniform tessellation, {where}; "
           f"smoothffd {getattr(smoothffd, '__version__', '?')}; median of {a.repeats} frames, "
           "uniform and adaptive alternating")
     print("t = e_L: the uniform level-L output's true max error (dense sampling); adaptive runs at "
@@ -271,11 +275,11 @@ def main():
     rows = []
     for name in a.workloads:
         levels = a.w1_levels if (name == "w1" and a.w1_levels) else a.levels
-        rows += run_workload(name, levels, a.repeats, a.error_patches)
+        rows += run_workload(name, levels, a.repeats, a.error_patches, device=a.device)
     print(f"\ntotal {time.perf_counter() - t0:.0f} s")
     if a.json:
         with open(a.json, "w") as f:
-            json.dump(dict(date=started, commit=commit(), machine=platform.machine(),
+            json.dump(dict(date=started, commit=commit(), device=a.device, machine=platform.machine(),
                            cores=os.cpu_count(), repeats=a.repeats,
                            error_patches=a.error_patches, skipped=BLENDER_ONLY, rows=rows), f, indent=1)
 

@@ -530,6 +530,17 @@ def migrate(mod):
         except KeyError:            # an input the old layout did not have: its default
             pass
     mod.node_group = ensure_group()
+    # Inputs the old layout lacked get their defaults: on 3.4-4.0 the modifier's values are
+    # keyed by position (Input_N), so a new input would otherwise take an old one's value.
+    for name, _stype, default, *_ in INPUTS:
+        if name in values or default is None:
+            continue
+        if name in MENU_NAMES:
+            default = menu_items(name)[0]
+        try:
+            compat.set_modifier_input(mod, name, default)
+        except KeyError:            # not an input of this layout
+            pass
     for name, value in values.items():
         if value is None:           # an empty object input: already empty
             continue

@@ -18,6 +18,7 @@ import importlib
 import os
 import re
 import sys
+import tempfile
 
 import bpy
 import numpy as np
@@ -369,6 +370,93 @@ def test_stacked():
             str(seen))
 
 
+def test_carried():
+    """UV maps and vertex groups on an adaptive result (carry.AdaptiveSources): a UV map
+    that is the corner's x, y and a group weight 0.5 + 0.3 x, both linear, come out as the
+    same functions of each output vertex's rest position (barycentric interpolation keeps
+    linear functions); the source's vertices keep their weights exactly."""
+    T.clear()
+    obj = T.make_mesh("uvsphere")
+    me = obj.data
+    co = T.positions(me)
+    cv = T.triangles_like_loops(me)
+    layer = me.uv_layers.new(name="UVMap")
+    layer.data.foreach_set("uv", np.ascontiguousarray(co[cv][:, :2] * 0.4 + 0.5, np.float32).ravel())
+    second = me.uv_layers.new(name="xy")
+    second.data.foreach_set("uv", np.ascontiguousarray(co[cv][:, :2], np.float32).ravel())
+    me.uv_layers["UVMap"].active_render = True
+    grp = obj.vertex_groups.new(name="grp")
+    weights = 0.5 + 0.3 * co[:, 0]
+    for i, w in enumerate(weights):
+        grp.add([i], float(w), 'REPLACE')
+    lat = T.make_lattice((3, 3, 3), "KEY_BSPLINE", scale=(1.6, 1.6, 1.6), seed=5)
+    mod = smooth_ffd.add_smooth_ffd(obj, lat, viewport_level=2)
+    setting(mod, Viewport_Tessellation="Tolerance", Viewport_Tolerance=TOL, Viewport_Max_Level=32)
+    smooth_ffd.update(obj, render=True)   # vertex groups are carried for render
+    ro = T.objects.result_object(obj, mod, create=False)
+    rme = ro.data
+    rest = T.point_attribute(rme, "smooth_ffd_rest_position").astype(np.float64)
+    rcv = T.triangles_like_loops(rme)
+    xy = np.empty(len(rme.loops) * 2, np.float32)
+    rme.uv_layers["xy"].data.foreach_get("uv", xy)
+    err_uv = np.abs(xy.reshape(-1, 2) - rest[rcv][:, :2]).max()
+    T.check("adaptive: a second UV map carried (linear in the rest position)",
+            err_uv < 2e-5 and len(rme.polygons) != 2 * 2 * T.patches(obj, mod),
+            f"max err {err_uv:.1e} on {len(rme.loops)} corners")
+    gi = ro.vertex_groups["grp"].index
+    w_out = np.array([next((g.weight for g in v.groups if g.group == gi), -1.0)
+                      for v in rme.vertices])
+    nv = len(co)
+    err_w = np.abs(w_out[nv:] - (0.5 + 0.3 * rest[nv:, 0])).max()
+    T.check("adaptive: vertex group weights carried (source vertices exact, others linear)",
+            np.array_equal(w_out[:nv].astype(np.float32), weights.astype(np.float32))
+            and err_w < 2e-5, f"max err {err_w:.1e} on {len(w_out) - nv} new vertices")
+
+
+def test_live():
+    """4.5+ live editing (positions only while a result keeps changing) on an adaptive
+    result: the same triangles and positions as an exact update of the same inputs."""
+    if not compat.CHEAP_EXACT_NORMALS:
+        return   # before 4.5 the viewport is positions only anyway (test_tolerance's status)
+    obj, lat, mod = scene()
+    setting(mod, Viewport_Tessellation="Tolerance", Viewport_Tolerance=TOL, Viewport_Max_Level=32)
+    live, settle = T.state.LIVE, T.state.SETTLE
+    T.state.LIVE, T.state.SETTLE = True, 30.0
+    try:
+        for dz in (0.1, 0.1):
+            lat.data.points[4].co_deform.z += dz
+            T.update()
+        text = status(mod)
+        pos, tri = mesh_arrays(obj)
+        pos, tri = pos.copy(), tri.copy()
+        smooth_ffd.update(obj, force=True)
+        T.state.LIVE = False
+        smooth_ffd.update(obj, force=True)
+        pos2, tri2 = mesh_arrays(obj)
+        T.check("adaptive while changing: positions only, the exact update's mesh",
+                "from geometry normals" in text and np.array_equal(tri, tri2)
+                and np.array_equal(pos, pos2), f"{text}; then {status(mod)}")
+    finally:
+        T.state.LIVE, T.state.SETTLE = live, settle
+
+
+def test_saved_hold():
+    """A held range is saved with the file: reopened, frames 1-4 still share a topology."""
+    obj, lat, mod = scene()
+    setting(mod, Viewport_Tessellation="Tolerance", Viewport_Tolerance=TOL, Viewport_Max_Level=32)
+    smooth_ffd.hold_tessellation(obj, mod, 1, 4)
+    before = topologies(obj, (1, 4))
+    path = os.path.join(tempfile.mkdtemp(), "held.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    obj = bpy.data.objects["src"]
+    mod = obj.modifiers[0]
+    after = topologies(obj, (1, 2, 4))
+    T.check("a held range saved and reopened: the same topology on frames 1-4",
+            all(np.array_equal(before[1], t) for t in after.values())
+            and "counts held over frames 1-4" in status(mod), status(mod))
+
+
 def main():
     T.setup()
     T.run("tolerance", test_tolerance)
@@ -377,6 +465,9 @@ def main():
     T.run("motion blur", test_motion_blur)
     T.run("apply and bake", test_apply_and_bake)
     T.run("stacked", test_stacked)
+    T.run("carried", test_carried)
+    T.run("live", test_live)
+    T.run("saved hold", test_saved_hold)
     T.finish()
 
 

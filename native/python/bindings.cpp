@@ -86,6 +86,15 @@ py::array_t<T> copy_out(const std::vector<T>& v, std::vector<py::ssize_t> shape)
   return a;
 }
 
+// A vector's storage handed to numpy without a copy (the array owns it).
+template <class T>
+py::array_t<T> move_out(std::vector<T>&& v, std::vector<py::ssize_t> shape) {
+  if (v.empty()) return py::array_t<T>(shape);
+  auto* owner = new std::vector<T>(std::move(v));
+  py::capsule free_when_done(owner, [](void* p) { delete static_cast<std::vector<T>*>(p); });
+  return py::array_t<T>(shape, owner->data(), free_when_done);
+}
+
 py::dict times_dict(const StageTimes& t) {
   py::dict d;
   for (auto& kv : t) d[py::str(kv.first)] = kv.second;
@@ -142,29 +151,30 @@ AdaptiveOptions adaptive_options(const Plan& plan, const Arr<float>& D, double t
   return opt;
 }
 
-py::dict adaptive_dict(const Plan& plan, const AdaptiveMesh& a, const AdaptiveOptions& opt, bool uvs) {
+py::dict adaptive_dict(const Plan& plan, AdaptiveMesh&& a, const AdaptiveOptions& opt, bool uvs) {
   py::dict r;
-  r["edge_segments"] = copy_out(a.edge_segments, {(py::ssize_t)a.edge_segments.size()});
-  r["patch_level"] = copy_out(a.patch_level, {(py::ssize_t)a.patch_level.size()});
+  const py::ssize_t E = (py::ssize_t)a.edge_segments.size(), P = (py::ssize_t)a.patch_level.size();
+  r["edge_segments"] = move_out(std::move(a.edge_segments), {E});
+  r["patch_level"] = move_out(std::move(a.patch_level), {P});
   r["max_bound"] = a.max_bound;
   r["capped"] = a.capped;
   r["stage_ms"] = times_dict(a.times);
   if (opt.counts_only) return r;
   const py::ssize_t N = (py::ssize_t)a.positions.size() / 3, T = (py::ssize_t)a.face_index.size();
-  r["positions"] = copy_out(a.positions, {N, 3});
-  r["triangles"] = copy_out(a.triangles, {T, 3});
-  r["face_index"] = copy_out(a.face_index, {T});
-  r["triangle_patch"] = copy_out(a.triangle_patch, {T});
-  r["corner_normals"] = opt.normals ? py::object(copy_out(a.corner_normals, {T, 3, 3})) : py::object(py::none());
-  r["uvs"] = uvs ? py::object(copy_out(a.uvs, {T, 3, 2})) : py::object(py::none());
-  r["rest_positions"] = copy_out(a.rest_positions, {N, 3});
-  r["sharp_edges"] = copy_out(a.sharp_edges, {(py::ssize_t)a.sharp_edges.size() / 2, 2});
+  r["positions"] = move_out(std::move(a.positions), {N, 3});
+  r["triangles"] = move_out(std::move(a.triangles), {T, 3});
+  r["face_index"] = move_out(std::move(a.face_index), {T});
+  r["triangle_patch"] = move_out(std::move(a.triangle_patch), {T});
+  r["corner_normals"] = opt.normals ? py::object(move_out(std::move(a.corner_normals), {T, 3, 3})) : py::object(py::none());
+  r["uvs"] = uvs ? py::object(move_out(std::move(a.uvs), {T, 3, 2})) : py::object(py::none());
+  r["rest_positions"] = move_out(std::move(a.rest_positions), {N, 3});
+  const py::ssize_t K = (py::ssize_t)a.sharp_edges.size() / 2;
+  r["sharp_edges"] = move_out(std::move(a.sharp_edges), {K, 2});
   if (!a.patch_uniform.empty())
-    r["patch_uniform"] = copy_out(std::vector<uint8_t>(a.patch_uniform.begin(), a.patch_uniform.end()),
-                                  {(py::ssize_t)a.patch_uniform.size()});
+    r["patch_uniform"] = copy_out(std::vector<uint8_t>(a.patch_uniform.begin(), a.patch_uniform.end()), {P});
   if (opt.details) {
-    r["patch_control"] = copy_out(a.patch_control, {(py::ssize_t)plan.patches, 10, 3});
-    r["corner_bary"] = copy_out(a.corner_bary, {T, 3, 3});
+    r["patch_control"] = move_out(std::move(a.patch_control), {(py::ssize_t)plan.patches, 10, 3});
+    r["corner_bary"] = move_out(std::move(a.corner_bary), {T, 3, 3});
   }
   return r;
 }
@@ -671,7 +681,7 @@ PYBIND11_MODULE(_core, m) {
           py::gil_scoped_release release;
           a = ev.adaptive_frame(d, uv, opt);
         }
-        return adaptive_dict(plan, a, opt, uv != nullptr);
+        return adaptive_dict(plan, std::move(a), opt, uv != nullptr);
       },
       py::arg("values"), py::arg("tolerance"), py::arg("max_level"), py::arg("normals") = true,
       py::arg("uvs") = py::none(), py::arg("min_edge_segments") = py::none(), py::arg("min_patch_level") = py::none(),

@@ -95,7 +95,6 @@ def hold_shutter(scene, modifiers):
     if not holds.motion_blur(scene) or threading.current_thread() is not threading.main_thread():
         return notes
     lo, hi = holds.shutter(scene)
-    frame = scene.frame_current + scene.frame_subframe
     times = []
     for i in range(SHUTTER_SAMPLES):
         t = lo + (hi - lo) * i / (SHUTTER_SAMPLES - 1)
@@ -106,9 +105,8 @@ def hold_shutter(scene, modifiers):
         with state.muted():
             for obj, mod in modifiers:
                 ro = objects.result_object(obj, mod, create=False)
-                if ro is not None and holds.held_range(ro, "render") is not None and \
-                        holds.stamp(ro, state.of_result(ro, create=True), True, frame):
-                    continue
+                if holds.covers(ro, "render", lo) and holds.covers(ro, "render", hi):
+                    continue   # a held range covers the whole shutter
                 try:
                     found = _counts_over(obj, mod, scene, times, ("render",))
                 except Exception as e:   # never stops the render: that frame is not held

@@ -10,6 +10,8 @@ Deformer.tessellation_counts), passed to the core as deform(hold=...):
   the subframes Blender renders the frame's motion from get one topology.
 A hold applies only to the plan and the tessellation setting it was computed for (other
 patches or another tolerance setting: the update is not held, and the status says so)."""
+import uuid
+
 import numpy as np
 
 from . import inputs
@@ -27,7 +29,7 @@ def store(ro, kind, first, last, plan_token, setting, counts):
     'viewport')."""
     data = dict(ro.get(HOLD_KEY, {}))
     data[kind] = {"from": int(first), "to": int(last), "plan": plan_token,
-                  "setting": repr(setting),
+                  "setting": repr(setting), "serial": uuid.uuid4().hex,
                   **{n: np.asarray(counts[n], np.int32).tolist() for n in NAMES}}
     ro[HOLD_KEY] = data
 
@@ -46,6 +48,11 @@ def held_range(ro, kind):
     return None if entry is None else (int(entry["from"]), int(entry["to"]))
 
 
+def covers(ro, kind, frame):
+    """Whether a held range of kind covers this frame."""
+    return ro is not None and _entry(ro, kind, frame) is not None
+
+
 def _entry(ro, kind, frame):
     entry = ro.get(HOLD_KEY, {}).get(kind)
     if entry is None or not entry["from"] - 0.5 <= frame < entry["to"] + 0.5:
@@ -54,37 +61,37 @@ def _entry(ro, kind, frame):
 
 
 def stamp(ro, st, render, frame):
-    """What holds this frame (part of the update's key: a new hold recomputes it)."""
-    entry = _entry(ro, which(render), frame)
-    if entry is not None:
-        return ("frames", entry["from"], entry["to"], entry["plan"], entry["setting"],
-                len(entry["edge_segments"]))
+    """What holds this frame (part of the update's key: a new hold recomputes it). A
+    render's shutter hold comes first: it covers every subframe of the frame rendered."""
     sh = st.shutter if render else None
     if sh is not None and sh[0][0] <= frame <= sh[0][1]:
         return ("shutter",) + sh[0] + (sh[1], repr(sh[2]))
+    entry = _entry(ro, which(render), frame)
+    if entry is not None:
+        return ("frames", entry["serial"])
     return None
 
 
 def lookup(ro, st, render, frame, plan_token, setting):
     """(counts or None, a note for the status or None) for this frame's update."""
-    entry = _entry(ro, which(render), frame)
-    if entry is not None:
-        span = f"frames {entry['from']}-{entry['to']}"
-        if entry["plan"] != plan_token or entry["setting"] != repr(setting):
-            return None, (f"counts held over {span} not used (other patches or another "
-                          f"tessellation setting: hold again)")
-        key = (id(entry), entry["plan"], entry["setting"], entry["from"], entry["to"])
-        cached = st.hold_cache.get(key)
-        if cached is None:
-            cached = {n: np.asarray(entry[n], np.int32) for n in NAMES}
-            st.hold_cache = {key: cached}
-        return cached, f"counts held over {span}"
     sh = st.shutter if render else None
     if sh is not None and sh[0][0] <= frame <= sh[0][1]:
         (lo, hi), token, sh_setting, counts = sh
         if token == plan_token and sh_setting == setting:
             return counts, f"counts held over the shutter {lo:g}-{hi:g}"
         return None, "counts over the shutter not used (other patches: motion blur may drop)"
+    entry = _entry(ro, which(render), frame)
+    if entry is not None:
+        span = f"frames {entry['from']}-{entry['to']}"
+        if entry["plan"] != plan_token or entry["setting"] != repr(setting):
+            return None, (f"counts held over {span} not used (other patches or another "
+                          f"tessellation setting: hold again)")
+        key = entry["serial"]
+        cached = st.hold_cache.get(key)
+        if cached is None:
+            cached = {n: np.asarray(entry[n], np.int32) for n in NAMES}
+            st.hold_cache = {key: cached}
+        return cached, f"counts held over {span}"
     return None, None
 
 

@@ -318,6 +318,26 @@ def test_motion_blur():
             len(times) >= 2 and len({n for _, n in seen}) == 1
             and all("counts held over the shutter 1.5-2.5" in t for t in texts),
             f"{seen}; {texts[-1] if texts else None}")
+    # With a held range: it serves a shutter it covers whole; one that ends inside the
+    # shutter (frames 1-2, shutter 1.5-2.5) gives way to the shutter's hold.
+    for last, shutter_held in ((3, False), (2, True)):
+        smooth_ffd.hold_tessellation(obj, mod, 1, last)
+        sc.frame_set(2)
+        T.handlers.on_render_pre(sc)
+        try:
+            st = T.objects.state_of(obj, mod)
+            got = (st.shutter is not None) == shutter_held
+            held = []
+            for f, s in ((1, 0.5), (2, 0.0), (2, 0.5)):
+                sc.frame_set(f, subframe=s)
+                smooth_ffd.update(obj, render=True)
+                held.append(mesh_arrays(obj)[1].copy())
+            T.check(f"motion blur with frames 1-{last} held: one topology over the shutter "
+                    f"({'the shutter' if shutter_held else 'the range'} holds it)",
+                    got and all(np.array_equal(held[0], t) for t in held), status(mod))
+        finally:
+            T.handlers.on_render_done(sc)
+        smooth_ffd.clear_hold(obj, mod)
     sc.render.use_motion_blur = False
 
 

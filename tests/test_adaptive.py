@@ -211,6 +211,17 @@ def test_bad_arguments():
     d = smoothffd.Deformer(cube, lat, tolerance=0.01)
     with pytest.raises(ValueError, match="layout"):
         d.deform(layout="compact")
+    # The tolerance and max_level of an adaptive Deformer change between frames, checked.
+    n = len(d.deform().triangles)
+    d.tolerance = 0.001
+    assert len(d.deform().triangles) > n
+    for bad in (0, float("inf")):
+        with pytest.raises(ValueError, match="tolerance"):
+            d.tolerance = bad
+    with pytest.raises(ValueError, match="max_level"):
+        d.max_level = 65
+    with pytest.raises(ValueError, match="uniform level"):
+        smoothffd.Deformer(cube, lat, level=2).tolerance = 0.01
     # A tolerance no level can meet is held at max_level and said so.
     res = smoothffd.Deformer(cube, real._random_moderate(cube, 1), tolerance=1e-9, max_level=4).deform()
     assert not res.stats["tolerance_met"] and res.stats["capped"] > 0

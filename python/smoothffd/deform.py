@@ -128,6 +128,13 @@ def _estimate_bytes(mesh, lattice, level):
                                      sum(lattice.degrees), mesh.uvs is not None)
 
 
+def _positive_distance(value):
+    value = finite_float(value, "tolerance")
+    if not value > 0:
+        raise ValueError(f"tolerance: expected a positive distance, got {value!r}")
+    return value
+
+
 # The core computes in float32: magnitudes near its limit (3.4e38) overflow to inf/NaN in the
 # output (a lattice scaled by 1e38, a mesh at 1e38: found by tests/test_robustness.py). Refuse
 # them by name instead of returning a silently broken mesh; 1e37 leaves headroom for the sums.
@@ -170,13 +177,11 @@ class Deformer:
         if device not in DEVICES:
             raise ValueError(f"device: expected one of {DEVICES}, got {device!r}")
         self.threads = positive_int(threads, "threads", 0, 4096)
-        self.tolerance = None
+        self._tolerance = None
         if tolerance is not None:
-            self.tolerance = finite_float(tolerance, "tolerance")
-            if not self.tolerance > 0:
-                raise ValueError(f"tolerance: expected a positive distance, got {self.tolerance!r}")
+            self._tolerance = _positive_distance(tolerance)
             self.level = 1  # the plan's uniform tables are not used
-        self.max_level = positive_int(max_level, "max_level", 1, MAX_LEVEL)
+        self.max_level = max_level
         self.mesh = mesh
         big = float(np.abs(mesh.positions).max(initial=0.0))
         if not big <= _F32_LIMIT:
@@ -493,6 +498,30 @@ class Deformer:
             return self._evaluator.evaluate(values, **kw)
         positions, stages = self._evaluator.evaluate_positions(values, **kw)
         return positions, None, stages
+
+    @property
+    def tolerance(self):
+        """The adaptive tessellation's tolerance (object units), or None (uniform `level`).
+        An adaptive Deformer's may be changed between frames (the plan does not depend on it,
+        e.g. a screen-space tolerance that follows a camera); a uniform one has none to change."""
+        return self._tolerance
+
+    @tolerance.setter
+    def tolerance(self, value):
+        if self._tolerance is None:
+            raise ValueError("tolerance: this Deformer was planned for a uniform level; make one with "
+                             "tolerance=... for adaptive tessellation")
+        with self._lock:
+            self._tolerance = _positive_distance(value)
+
+    @property
+    def max_level(self):
+        """The most segments an adaptive frame gives a patch edge (1..MAX_LEVEL); settable."""
+        return self._max_level
+
+    @max_level.setter
+    def max_level(self, value):
+        self._max_level = positive_int(value, "max_level", 1, MAX_LEVEL)
 
     @property
     def splits_normals(self):

@@ -5,9 +5,9 @@
 
 For each workload and uniform level L: the uniform output's true tessellation error e_L (the
 largest distance between its triangles and the cubic patches they approximate, by dense
-sampling: tests/test_adaptive.py's uniform_error, 28 points a triangle), then the adaptive
+sampling: tests/tessellation_error.py's uniform_error, 28 points a triangle), then the adaptive
 tessellation at tolerance t = e_L (Deformer(..., tolerance=t)), its triangles, its own worst
-true error (test_adaptive.adaptive_error) over t (also with the triangles' corners computed
+true error (tessellation_error.adaptive_error) over t (also with the triangles' corners computed
 in float64 on their patches: near 1e-6 of the diagonal the float32 output positions' own
 rounding is a visible part of t), and the time of a frame of each (median of
 --repeats frames, uniform and adaptive alternating in the same process; fresh result arrays,
@@ -46,7 +46,7 @@ import numpy as np  # noqa: E402
 
 import shapes  # noqa: E402
 import smoothffd  # noqa: E402
-import test_adaptive as ta  # noqa: E402
+import tessellation_error as ta  # noqa: E402
 import test_real_meshes as real  # noqa: E402
 from smoothffd import _core  # noqa: E402
 from smoothffd.deform import _control_values_f32  # noqa: E402

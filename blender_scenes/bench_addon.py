@@ -15,7 +15,10 @@ Workloads (default: sphere):
   sphere4  the 46.8k-triangle sphere at level 4 beside Subsurf 2: updates per second;
   dense    a 199,692-triangle sphere (quads) in an 8x8x8 lattice wrapped around it (lattice()),
            level 2 beside Subsurf 1: one lattice point moved (the middle one, and (1, 1, 1)
-           next to a corner) against all points moved.
+           next to a corner) against all points moved;
+  adaptive suzanne (4x4x4 lattice) at viewport levels 2, 3, 4 beside the Tolerance mode at the
+           same accuracy: t = e_L, the level-L output's true distance from its patches
+           (tests/tessellation_error.py on the core's patches of the modifier's inputs).
 Smooth FFD rows on 4.5+: exact normals on every update (background mode), and "live", the
 viewport while a point is dragged (positions only, state.LIVE).
 
@@ -58,8 +61,9 @@ _GROUPS = {"targets": ("suzanne", "sphere4", "dense")}
 WORKLOADS = [w for a in argv()[1:] if a not in ("ab", "noexact")
              for w in _GROUPS.get(a, (a,))] or ["sphere"]
 for _w in WORKLOADS:
-    if _w not in ("sphere", "suzanne", "wrapped", "sphere4", "dense"):
-        sys.exit(f"bench_addon.py: unknown workload {_w!r} (sphere, targets, suzanne, wrapped, sphere4, dense)")
+    if _w not in ("sphere", "suzanne", "wrapped", "sphere4", "dense", "adaptive"):
+        sys.exit(f"bench_addon.py: unknown workload {_w!r} (sphere, targets, suzanne, wrapped, sphere4, "
+                 "dense, adaptive)")
 
 
 def sphere_mesh(name, u=180, v=131, triangulate=True):
@@ -444,9 +448,68 @@ def _bbox(mesh):
     return (co.min(0) + co.max(0)) / 2, co.max(0) - co.min(0)
 
 
+def uniform_errors(obj, lat, levels):
+    """{L: e_L}: the largest distance between the uniform level-L triangles and the cubic
+    patches of the modifier's inputs (obj's mesh, the evaluated lattice), by dense sampling."""
+    sys.path.insert(0, os.path.join(ROOT, "tests"))
+    import smoothffd
+    import tessellation_error
+    from smooth_ffd import core, latticeio, meshio
+    from smoothffd import _core
+    from smoothffd.deform import _control_values_f32
+
+    dg = bpy.context.evaluated_depsgraph_get()
+    rest, pts, interp, _shape, _key, _weights = latticeio.read_lattice(lat, dg)
+    l2o = core.lattice_to_object(latticeio.world_matrix(obj, dg), latticeio.world_matrix(lat, dg))
+    lattice = smoothffd.BlenderLattice(rest, pts, interpolation=interp, lattice_to_object=l2o)
+    d = core.make_deformer(meshio.SourceMesh(obj.data, None, False, []), lattice, 1, "cpu", 1.0, 64)
+    cp = _core.adaptive_frame(d.plan, _control_values_f32(d.lattice), 1e30, 1, 0, False, None,
+                              True)["patch_control"]
+    return {L: tessellation_error.uniform_error(cp, L) for L in levels}
+
+
+def adaptive_rows(workload, mesh, lat, levels):
+    """Smooth FFD at each viewport level beside its Tolerance mode at t = e_L (same accuracy)."""
+    rows = sffd_rows(workload, mesh, lat, levels)
+    probe = link(bpy.data.objects.new("probe", mesh.copy()))
+    only_visible(probe)
+    errors = uniform_errors(probe, lat, levels)
+    me = probe.data
+    bpy.data.objects.remove(probe)
+    bpy.data.meshes.remove(me)
+    for level in levels:
+        obj = link(bpy.data.objects.new(f"adaptive{level}", mesh.copy()))
+        only_visible(obj)
+        mod, first = add_sffd(obj, lat, level, False)
+        for key, value in (("Viewport Tessellation", "Tolerance"), ("Viewport Tolerance", errors[level]),
+                           ("Viewport Max Level", 64)):
+            compat.set_modifier_input(mod, key, value)
+        obj.update_tag()
+        bpy.context.view_layer.update()
+        if not str(smooth_ffd.status(mod)).startswith("OK"):
+            sys.exit(f"bench_addon.py: Smooth FFD tolerance on {workload}: {smooth_ffd.status(mod)}")
+        ms, sp = time_edit(lat, obj, REPEATS, mod)[True, "one"]
+        rows.append(dict(workload=workload, tris_in=mesh_triangles(mesh),
+                         name=f"Smooth FFD tolerance e_{level}", kind="sffd", level=level, move="one",
+                         tris=evaluated_tris(obj), ms=ms,
+                         detail=(f"t = {errors[level]:.3g}; core deform {sp['core_ms']:.1f} / mesh write "
+                                 f"{sp['mesh_write_ms']:.1f} / normals {sp['normals_ms']:.1f}; "
+                                 f"{_phase_text(sp)}; status {smooth_ffd.status(mod)}")))
+        smooth_ffd.remove_smooth_ffd(obj, mod)
+        me = obj.data
+        bpy.data.objects.remove(obj)
+        bpy.data.meshes.remove(me)
+    return rows
+
+
 def workload_rows(workload):
     clear_objects()
-    if workload in ("suzanne", "wrapped"):
+    if workload == "adaptive":
+        mesh = suzanne_mesh()
+        center, ext = _bbox(mesh)
+        lat = lattice(4, tuple(center), tuple(1.05 * ext))
+        rows = adaptive_rows(workload, mesh, lat, (2, 3, 4))
+    elif workload in ("suzanne", "wrapped"):
         mesh = suzanne_mesh()
         center, ext = _bbox(mesh)
         lat = lattice(4, tuple(center), tuple(1.05 * ext), wrap=workload == "wrapped")
@@ -507,6 +570,12 @@ def workload_targets(workloads):
                 per_tri = (s["ms"] / s["tris"]) / (f["ms"] / f["tris"])
                 print(f"  (a) level {lv}{sfx} ({f['tris']} tris) vs Subsurf {sub} ({s['tris']} tris): "
                       f"{x:.2f}x in time, {per_tri:.2f}x per output triangle")
+        if "adaptive" in workloads and not sfx:
+            for lv in (2, 3, 4):
+                u, a = _find(rows, "adaptive", f"Smooth FFD level {lv}"), _find(rows, "adaptive", f"Smooth FFD tolerance e_{lv}")
+                print(f"adaptive {ver}: level {lv} ({u['tris']} tris) {u['ms']:.1f} ms vs tolerance e_{lv} "
+                      f"({a['tris']} tris, {a['tris'] / u['tris']:.2f}x) {a['ms']:.1f} ms "
+                      f"({a['ms'] / u['ms']:.2f}x the time)")
         if "sphere4" in workloads:
             s, f, x = pair("sphere4", "Lattice + Subsurf 2", "Smooth FFD level 4" + sfx)
             ups = 1e3 / f["ms"]

@@ -432,7 +432,7 @@ def adaptive_wireframes(level=4):
     """Uniform level L beside adaptive at t = e_L (the uniform output's true error) on the vase
     scene and on Suzanne: (path, caption facts) per mesh."""
     import bench_adaptive as ba
-    import test_adaptive as ta
+    import tessellation_error as ta
 
     out = []
     for name, direction, fname in (
@@ -477,7 +477,7 @@ def adaptive_section(data, printed, err, wires, quick):
       "compares it with the uniform levels on the same patches: for each level L it measures the "
       "uniform output's true maximum tessellation error e_L (the largest distance between a "
       "triangle and its patch, by dense sampling: 28 points a triangle, "
-      "`tests/test_adaptive.py`), runs the adaptive tessellation at t = e_L and measures its own "
+      "`tests/tessellation_error.py`), runs the adaptive tessellation at t = e_L and measures its own "
       "true maximum error the same way: with the output's float32 positions (*worst / t*) and "
       "with its triangles' corners evaluated on their patches in float64 (*float64 corners*, as "
       "e_L is measured for the uniform triangles: the like-for-like figure). Times: one `Deformer.deform` each with the plan reused, "

@@ -177,15 +177,7 @@ AdaptiveMesh CudaEvaluator::adaptive_frame(const float* D, const float* corner_u
   a.times = to_times(t);
   a.edge_segments.resize(p.edges);
   a.patch_level.resize(p.patches);
-  if (!o.counts_only) {
-    a.positions.resize(3 * (size_t)N);
-    a.rest_positions.resize(3 * (size_t)N);
-    a.triangles.resize(3 * (size_t)T);
-    a.face_index.resize(T);
-    a.triangle_patch.resize(T);
-    if (o.normals) a.corner_normals.resize(9 * (size_t)T);
-    if (corner_uv) a.uvs.resize(6 * (size_t)T);
-  }
+  if (!o.counts_only) a.allocate(N, T, o, corner_uv != nullptr);
   auto ptr = [](auto& v) { return v.empty() ? nullptr : v.data(); };
   check(api_->adaptive_copy(handle_, ptr(a.positions), ptr(a.rest_positions), ptr(a.triangles), ptr(a.face_index),
                             ptr(a.triangle_patch), ptr(a.corner_normals), ptr(a.uvs), a.edge_segments.data(),

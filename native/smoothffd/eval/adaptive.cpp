@@ -145,14 +145,7 @@ AdaptiveMesh adaptive_frame(const Plan& plan, const float* D, const float* corne
 
   // 5. Emit.
   t0 = std::chrono::steady_clock::now();
-  out.positions.resize(3 * (size_t)N);
-  out.rest_positions.resize(3 * (size_t)N);
-  out.triangles.resize(3 * (size_t)T);
-  out.face_index.resize(T);
-  out.triangle_patch.resize(T);
-  if (o.normals) out.corner_normals.resize(9 * (size_t)T);
-  if (corner_uv) out.uvs.resize(6 * (size_t)T);
-  if (o.details) out.corner_bary.resize(9 * (size_t)T);
+  out.allocate(N, T, o, corner_uv != nullptr);
   av.edge_base = edge_base.data();
   av.patch_base = patch_base.data();
   av.tri_base = tri_base.data();

@@ -65,6 +65,19 @@ struct AdaptiveMesh {
   double max_bound = 0;               // the largest triangle bound of the output
   long long capped = 0;               // edges and patches held at max_level above the tolerance
   StageTimes times;
+
+  // The mesh arrays for N vertices and T triangles (the options' normals and details, UVs
+  // with corner_uv), as both backends fill them.
+  void allocate(long long N, long long T, const AdaptiveOptions& options, bool uvs) {
+    positions.resize(3 * (size_t)N);
+    rest_positions.resize(3 * (size_t)N);
+    triangles.resize(3 * (size_t)T);
+    face_index.resize(T);
+    triangle_patch.resize(T);
+    if (options.normals) corner_normals.resize(9 * (size_t)T);
+    if (uvs) this->uvs.resize(6 * (size_t)T);
+    if (options.details) corner_bary.resize(9 * (size_t)T);
+  }
 };
 
 // One adaptive frame of `plan` (any level: its uniform tables are not used) for control values

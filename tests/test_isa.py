@@ -55,12 +55,21 @@ def deform_small():
     res = d.deform()
     out = np.concatenate([res.positions.ravel(), res.corner_normals.ravel()]).astype(np.float32)
     return out, {"cpu_isa": _core.cpu_isa(), "evaluator_isa": d._evaluator.isa}
+
+
+def adaptive_small():
+    """The adaptive frame's bytes (positions, normals, triangles): its decisions and points are
+    compiled once, without contraction, so they are the same on every CPU, bit for bit."""
+    d = make_deformer()
+    r = smoothffd.Deformer(d.mesh, d.lattice, tolerance=2e-3, device="cpu", threads=1).deform()
+    return np.concatenate([a.ravel().view(np.uint8) for a in (r.positions, r.corner_normals, r.triangles)])
 '''
 
 MAIN = r'''
 import json, sys
 out, info = deform_small()
 np.save(sys.argv[1], out)
+np.save(sys.argv[2], adaptive_small())
 print("ISA " + json.dumps(info))
 '''
 
@@ -81,7 +90,7 @@ def module_root():
 def native_result():
     ns = {}
     exec(DEFORM, ns)
-    return ns["deform_small"]()
+    return ns["deform_small"]() + (ns["adaptive_small"](),)
 
 
 def _close(a, b, tol=1e-5):
@@ -112,7 +121,7 @@ def test_evaluator_reports_and_forces_its_path(deformer):
 def test_paths_agree_in_process(deformer, native_result):
     """The baseline path, forced, against the default one (v3 on an AVX2 machine)."""
     values = np.ascontiguousarray(deformer.lattice.control_values().reshape(-1, 3), dtype=np.float32)
-    out, _ = native_result
+    out, _, _ = native_result
     for isa in ("x86-64-v2", _core.cpu_isa()):
         pos, nrm, _ = _core.CpuEvaluator(deformer.plan, 2, isa=isa).evaluate(values)
         assert _close(np.concatenate([pos.ravel(), nrm.ravel()]), out), isa
@@ -155,11 +164,13 @@ def test_under_emulated_cpu(cpu, isa, tmp_path, python_cmd, module_root, native_
     env = {k: v for k, v in os.environ.items() if not k.startswith("OPENBLAS_")}
     env.update(PYTHONPATH=module_root, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1",
                OPENBLAS_CORETYPE=cpu)
-    r = subprocess.run([QEMU, "-cpu", cpu, *python_cmd, str(script), str(out_file)],
+    r = subprocess.run([QEMU, "-cpu", cpu, *python_cmd, str(script), str(out_file), str(tmp_path / "adaptive.npy")],
                        capture_output=True, text=True, env=env, timeout=600)
     assert r.returncode == 0, (f"qemu -cpu {cpu}: exit {r.returncode} (-4: SIGILL, an instruction "
                                f"the CPU lacks)\n{r.stdout}\n{r.stderr[-3000:]}")
     info = json.loads(r.stdout.split("ISA ", 1)[1].splitlines()[0])
     assert info == {"cpu_isa": isa, "evaluator_isa": isa}
-    out, _ = native_result
+    out, _, adaptive = native_result
     assert _close(np.load(out_file), out), f"-cpu {cpu} differs from the native result"
+    assert np.array_equal(np.load(tmp_path / "adaptive.npy"), adaptive), \
+        f"-cpu {cpu}: the adaptive frame differs from the native one"

@@ -84,12 +84,7 @@ def bake_smooth_ffd(obj, mod=None, frame_start=None, frame_end=None):
 def clear_bake(obj, mod=None):
     """Removes the bake of a modifier (or of each of the object's); the modifier computes
     live again on those frames. Returns whether there was one."""
-    linked.check_writable(obj, mod, "clear the bake of")
-    mods = [mod] if mod is not None else smooth_ffd_modifiers(obj)
-    had = [bake.clear(obj, m) for m in mods]
-    if any(had):
-        update(obj)
-    return any(had)
+    return _clear_each(obj, mod, "clear the bake of", bake.clear)
 
 
 def hold_tessellation(obj, mod=None, frame_start=None, frame_end=None):
@@ -109,9 +104,15 @@ def hold_tessellation(obj, mod=None, frame_start=None, frame_end=None):
 
 def clear_hold(obj, mod=None):
     """Every frame takes its own adaptive counts again; returns whether any were held."""
-    linked.check_writable(obj, mod, "clear the held tessellation of")
+    return _clear_each(obj, mod, "clear the held tessellation of", holdframes.clear)
+
+
+def _clear_each(obj, mod, action, clear):
+    """clear(obj, m) for the modifier (or each of the object's); recomputes when any had
+    something to clear, and returns whether one had."""
+    linked.check_writable(obj, mod, action)
     mods = [mod] if mod is not None else smooth_ffd_modifiers(obj)
-    had = [holdframes.clear(obj, m) for m in mods]
+    had = [clear(obj, m) for m in mods]
     if any(had):
         update(obj)
     return any(had)

@@ -54,6 +54,18 @@ class _ModifierOperator:
             mods = [m for m in mods if m.name == self.modifier]
         return obj, (mods[0] if mods else None)
 
+    def _clear(self, context, clear):
+        """clear(obj, mod) on the chosen modifier (a bake, held counts), errors reported."""
+        obj, mod = self._modifier(context)
+        if mod is None:
+            return {'CANCELLED'}
+        try:
+            clear(obj, mod)
+        except RuntimeError as e:
+            self.report({'ERROR'}, str(e))
+            return {'CANCELLED'}
+        return {'FINISHED'}
+
 
 class OBJECT_OT_smooth_ffd_apply(_ModifierOperator, bpy.types.Operator):
     """Apply the Smooth FFD modifier at its render level (exact normals)"""
@@ -136,15 +148,7 @@ class OBJECT_OT_smooth_ffd_bake_clear(_ModifierOperator, bpy.types.Operator):
     bl_options = {'REGISTER', 'UNDO'}
 
     def execute(self, context):
-        obj, mod = self._modifier(context)
-        if mod is None:
-            return {'CANCELLED'}
-        try:
-            api.clear_bake(obj, mod)
-        except RuntimeError as e:
-            self.report({'ERROR'}, str(e))
-            return {'CANCELLED'}
-        return {'FINISHED'}
+        return self._clear(context, api.clear_bake)
 
 
 class OBJECT_OT_smooth_ffd_hold(_ModifierOperator, bpy.types.Operator):
@@ -183,15 +187,7 @@ class OBJECT_OT_smooth_ffd_hold_clear(_ModifierOperator, bpy.types.Operator):
     bl_options = {'REGISTER', 'UNDO'}
 
     def execute(self, context):
-        obj, mod = self._modifier(context)
-        if mod is None:
-            return {'CANCELLED'}
-        try:
-            api.clear_hold(obj, mod)
-        except RuntimeError as e:
-            self.report({'ERROR'}, str(e))
-            return {'CANCELLED'}
-        return {'FINISHED'}
+        return self._clear(context, api.clear_hold)
 
 
 class OBJECT_OT_smooth_ffd_update(bpy.types.Operator):

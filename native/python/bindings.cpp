@@ -511,28 +511,77 @@ PYBIND11_MODULE(_core, m) {
            "interpolated as the UVs are (a UV map gives exactly Plan.uvs())")
       .def("fit_matrix", [](const Plan& p) { return copy_out(p.fit_matrix, {10, (py::ssize_t)p.columns}); });
 
+  // The mesh arguments of build_plan and follow_plan.
+  auto input_mesh = [](Arr<double> positions, Arr<int> corner_vertex, Arr<int> face_offset,
+                       std::optional<Arr<float>> corner_normals, std::optional<Arr<float>> uvs,
+                       std::optional<Arr<float>> vertex_weights) {
+    InputMesh mesh;
+    mesh.positions = to_vector(positions);
+    mesh.corner_vertex = to_vector(corner_vertex);
+    mesh.face_offset = to_vector(face_offset);
+    if (corner_normals) mesh.corner_normal = to_vector(*corner_normals);
+    if (uvs) mesh.corner_uv = to_vector(*uvs);
+    if (vertex_weights) mesh.vertex_weight = to_vector(*vertex_weights);
+    return mesh;
+  };
   m.def(
       "build_plan",
-      [](Arr<double> positions, Arr<int> corner_vertex, Arr<int> face_offset,
-         std::optional<Arr<float>> corner_normals, std::optional<Arr<float>> uvs,
-         std::optional<Arr<float>> vertex_weights, const LatticeSpec& spec, int level,
-         double sharp_angle_degrees, double memory_limit) {
-        InputMesh mesh;
-        mesh.positions = to_vector(positions);
-        mesh.corner_vertex = to_vector(corner_vertex);
-        mesh.face_offset = to_vector(face_offset);
-        if (corner_normals) mesh.corner_normal = to_vector(*corner_normals);
-        if (uvs) mesh.corner_uv = to_vector(*uvs);
-        if (vertex_weights) mesh.vertex_weight = to_vector(*vertex_weights);
+      [input_mesh](Arr<double> positions, Arr<int> corner_vertex, Arr<int> face_offset,
+                   std::optional<Arr<float>> corner_normals, std::optional<Arr<float>> uvs,
+                   std::optional<Arr<float>> vertex_weights, const LatticeSpec& spec, int level,
+                   double sharp_angle_degrees, double memory_limit, std::optional<py::tuple> triangulation,
+                   std::shared_ptr<Plan> like) {
+        InputMesh mesh = input_mesh(positions, corner_vertex, face_offset, corner_normals, uvs, vertex_weights);
         PlanOptions opt;
         opt.level = level;
         opt.sharp_angle_degrees = sharp_angle_degrees;
         opt.memory_limit = memory_limit;
-        return interruptible([&] { return std::make_shared<Plan>(build_plan(mesh, spec, opt)); });
+        Triangulation tr;
+        if (triangulation) {
+          if (triangulation->size() != 2)
+            throw std::invalid_argument("triangulation: expected (triangle corners (T, 3), triangle faces (T,))");
+          tr.corners = to_vector((*triangulation)[0].cast<Arr<int>>());
+          tr.face = to_vector((*triangulation)[1].cast<Arr<int>>());
+        }
+        const Triangulation* given = triangulation ? &tr : nullptr;
+        if (like && given)
+          throw std::invalid_argument("build_plan: give triangulation or like, not both (like brings its own)");
+        if (like) return interruptible([&] { return std::make_shared<Plan>(build_plan_like(mesh, spec, opt, *like)); });
+        return interruptible([&] { return std::make_shared<Plan>(build_plan(mesh, spec, opt, given)); });
       },
       py::arg("positions"), py::arg("corner_vertices"), py::arg("face_offsets"),
       py::arg("corner_normals"), py::arg("uvs"), py::arg("vertex_weights"), py::arg("lattice"),
-      py::arg("level"), py::arg("sharp_angle_degrees") = 1.0, py::arg("memory_limit") = 0.0);
+      py::arg("level"), py::arg("sharp_angle_degrees") = 1.0, py::arg("memory_limit") = 0.0,
+      py::arg("triangulation") = py::none(), py::arg("like") = nullptr,
+      "triangulation: (corners (T, 3), faces (T,)) the input's triangles (a plan's "
+      "input_triangles() for the same connectivity), or None: ear clipping by the current shape. "
+      "like: a plan of the same connectivity in another pose, whose triangles, and whose pieces' "
+      "triangles where the faces cross the knot planes alike, the new plan keeps (follow_plan's "
+      "result is build_plan(..., like=the plan before it))");
+  m.def(
+      "follow_plan",
+      [input_mesh](const std::shared_ptr<Plan>& plan, Arr<double> positions, Arr<int> corner_vertex, Arr<int> face_offset,
+                   std::optional<Arr<float>> corner_normals, std::optional<Arr<float>> uvs,
+                   std::optional<Arr<float>> vertex_weights, const LatticeSpec& spec,
+                   double sharp_angle_degrees, double memory_limit) {
+        // The Python object and its argument caster hold the plan; anything more is an
+        // evaluator (or another owner) that would read tables changed under it.
+        if (plan.use_count() > 2)
+          throw std::runtime_error("follow_plan: an evaluator still uses this plan; drop it first");
+        InputMesh mesh = input_mesh(positions, corner_vertex, face_offset, corner_normals, uvs, vertex_weights);
+        PlanOptions opt;
+        opt.level = plan->level;
+        opt.sharp_angle_degrees = sharp_angle_degrees;
+        opt.memory_limit = memory_limit;
+        return interruptible([&] { return follow_plan(*plan, mesh, spec, opt); });
+      },
+      py::arg("plan"), py::arg("positions"), py::arg("corner_vertices"), py::arg("face_offsets"),
+      py::arg("corner_normals"), py::arg("uvs"), py::arg("vertex_weights"), py::arg("lattice"),
+      py::arg("sharp_angle_degrees") = 1.0, py::arg("memory_limit") = 0.0,
+      "Replaces plan by the plan of the same input in a new pose (build_plan with the plan's own "
+      "triangulation), keeping its output topology where no face crosses the knot planes "
+      "differently and no normal splits or joins; returns whether it was kept. Refused while an "
+      "evaluator holds the plan.");
   m.def("estimate_plan_bytes", &estimate_plan_bytes, py::arg("patches"), py::arg("sub_vertices"),
         py::arg("level"), py::arg("fit_degree"), py::arg("uvs"),
         "bytes of a plan, one frame's buffers and one per-corner result (build_plan's memory_limit check)");

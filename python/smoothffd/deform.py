@@ -188,6 +188,7 @@ class Deformer:
             raise ValueError(f"mesh: positions up to {big:.3g} exceed the float32 range the core "
                              f"computes in (limit {_F32_LIMIT:g})")
         self.requested_device = device
+        self._triangulation = None  # the first plan's, once the mesh follows a pose
         # The evaluators keep per-frame buffers, and native work runs without the GIL: calls
         # from several threads take turns instead of racing on those buffers.
         self._lock = threading.Lock()
@@ -201,15 +202,20 @@ class Deformer:
         t0 = time.perf_counter()
         m = self.mesh
         avail = _available_memory()
+        # A mesh that has followed a pose keeps the triangles of its first plan (follow).
         self.plan = _core.build_plan(m.positions, m.corner_vertices, m.face_offsets,
                                      m.corner_normals, m.uvs, m.vertex_weights,
                                      lattice._spec, self.level,
-                                     memory_limit=float(avail) if avail else 0.0)
+                                     memory_limit=float(avail) if avail else 0.0,
+                                     triangulation=self._triangulation)
         self.plan_ms = (time.perf_counter() - t0) * 1e3
         self.lattice = lattice
         self._key = lattice.structure_key()
         self._static = None
         self.device, self.device_message = self._choose_device()
+        self._make_evaluator()
+
+    def _make_evaluator(self):
         self._evaluator = None
         if self.device == "cuda":
             try:
@@ -218,6 +224,57 @@ class Deformer:
                 self._fall_back_to_cpu(exc)
         if self._evaluator is None:
             self._evaluator = _core.CpuEvaluator(self.plan, self.threads)
+
+    def follow(self, mesh):
+        """Moves the planned mesh to a new pose without planning it again (an Armature, shape
+        keys or a Wave above the lattice: docs/algorithm.md, "A plan that follows the pose").
+
+        mesh: the planned mesh's faces (equal corner_vertices and face_offsets) with new
+        positions, and its own corner normals, UVs and vertex weights. The triangles of the
+        first plan are kept (not those of the new shape), everything that depends on positions
+        is computed again, and the output topology is kept while no face crosses the lattice's
+        knot planes differently and no normal splits or joins. Returns True when it was kept:
+        the next results' triangles, face_index, sharp_edges and render tables are then the very
+        arrays of the last ones (only positions, normals, UVs and rest positions change). The
+        next results equal those of a Deformer planned afresh for `mesh` with this plan's
+        triangles (`Plan.input_triangles()`) within float rounding.
+        """
+        if not isinstance(mesh, Mesh):
+            raise TypeError(f"mesh: expected smoothffd.Mesh, got {type(mesh).__name__}")
+        old = self.mesh
+        if mesh.vertex_count != old.vertex_count or not (
+                np.array_equal(mesh.face_offsets, old.face_offsets)
+                and np.array_equal(mesh.corner_vertices, old.corner_vertices)):
+            raise ValueError("mesh: its faces differ from the planned mesh's (follow moves the same "
+                             "faces to a new pose); plan it with a new Deformer")
+        big = float(np.abs(mesh.positions).max(initial=0.0))
+        if not big <= _F32_LIMIT:
+            raise ValueError(f"mesh: positions up to {big:.3g} exceed the float32 range the core "
+                             f"computes in (limit {_F32_LIMIT:g})")
+        with self._lock:
+            t0 = time.perf_counter()
+            if self._triangulation is None:
+                self._triangulation = self.plan.input_triangles()
+            avail = _available_memory()
+            self._evaluator = None  # the core refuses to change a plan an evaluator reads
+            try:
+                kept = _core.follow_plan(self.plan, mesh.positions, mesh.corner_vertices,
+                                         mesh.face_offsets, mesh.corner_normals, mesh.uvs,
+                                         mesh.vertex_weights, self.lattice._spec,
+                                         memory_limit=float(avail) if avail else 0.0)
+            finally:
+                self._make_evaluator()
+            self.mesh = mesh
+            if kept and self._static is not None:
+                self._static = dict(self._static, uvs=self.plan.uvs(),
+                                    rest_positions=self.plan.rest_positions())
+                for name in ("uvs", "rest_positions"):
+                    if self._static[name] is not None:
+                        self._static[name].setflags(write=False)
+            else:
+                self._static = None
+            self.plan_ms = (time.perf_counter() - t0) * 1e3
+            return kept
 
     def _fall_back_to_cpu(self, exc):
         """device='auto': continue on the CPU, saying why; device='cuda': raise."""

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <map>
 #include <tuple>
@@ -171,6 +172,33 @@ struct Clipper {
   // Triangulates a convex piece (which may carry collinear clip points on its sides) by
   // cutting, each time, the ear with the best shape among those whose diagonal leaves every
   // other vertex strictly inside: no slivers, no T-junctions.
+  // The hint's triangles of `tri` (ClipHint), hint_start[tri] .. hint_start[tri + 1].
+  const ClipHint* hint = nullptr;
+  std::vector<int> hint_start;
+
+  // Cuts the piece into the hint's triangles over the very same sub-vertices, where there are
+  // n - 2 of them and each has an area over eps in the current shape.
+  bool triangulate_as_hinted(const Poly& ring, int tri, double eps, const std::function<double(const PolyVertex&, const PolyVertex&, const PolyVertex&)>& area) {
+    if (!hint || tri + 1 >= (int)hint_start.size()) return false;
+    const int n = (int)ring.size();
+    auto at = [&](int id) {
+      for (int i = 0; i < n; ++i)
+        if (ring[i].id == id) return i;
+      return -1;
+    };
+    std::vector<std::array<int, 3>> tris;
+    for (int q = hint_start[tri]; q < hint_start[tri + 1]; ++q) {
+      std::array<int, 3> k;
+      for (int c = 0; c < 3; ++c) k[c] = at(hint->patch_vertex[3 * (size_t)q + c]);
+      if (k[0] < 0 || k[1] < 0 || k[2] < 0) continue;
+      if (!(area(ring[k[0]], ring[k[1]], ring[k[2]]) > eps)) return false;
+      tris.push_back(k);
+    }
+    if ((int)tris.size() != n - 2) return false;
+    for (const auto& k : tris) emit(ring[k[0]], ring[k[1]], ring[k[2]], tri);
+    return true;
+  }
+
   void triangulate(Poly ring, const double* nrm, int tri) {
     auto P = [&](const PolyVertex& v) { return &out.flat[3 * (size_t)v.id]; };
     auto area = [&](const PolyVertex& a, const PolyVertex& b, const PolyVertex& c) {
@@ -188,6 +216,7 @@ struct Clipper {
     double diam2 = 0;
     for (const PolyVertex& v : ring) diam2 = std::max(diam2, d2(v, ring[0]));
     double eps = 1e-12 * diam2;
+    if (ring.size() > 3 && triangulate_as_hinted(ring, tri, eps, area)) return;
     while (ring.size() > 3) {
       int n = (int)ring.size(), best = -1;
       double best_q = -1, most = -INFINITY;
@@ -217,7 +246,7 @@ struct Clipper {
 }  // namespace
 
 ClipResult clip_to_knot_boxes(const std::vector<double>& X, const std::vector<int>& tv,
-                              const LatticeSpec& lattice) {
+                              const LatticeSpec& lattice, const ClipHint* hint) {
   ClipResult out;
   int V = (int)(X.size() / 3), T = (int)(tv.size() / 3);
   out.flat = X;
@@ -225,6 +254,17 @@ ClipResult clip_to_knot_boxes(const std::vector<double>& X, const std::vector<in
   out.origin_bary.assign(3 * (size_t)V, 0.0);
   out.snap.assign(V, 0.0);
   Clipper c{lattice, out, {}, {}, {}};
+  if (hint) {
+    c.hint = hint;
+    c.hint_start.assign(T + 1, 0);
+    for (int t : hint->patch_tri)
+      if (t >= 0 && t < T) c.hint_start[t + 1]++;
+    for (int t = 0; t < T; ++t) c.hint_start[t + 1] += c.hint_start[t];
+    // The hint's pieces come in triangle order (as this function emits them), else none is used.
+    if (!std::is_sorted(hint->patch_tri.begin(), hint->patch_tri.end()) ||
+        hint->patch_vertex.size() != 3 * hint->patch_tri.size() || c.hint_start[T] != (int)hint->patch_tri.size())
+      c.hint = nullptr;
+  }
   c.param.resize(3 * (size_t)V);
   c.reach.resize(3 * (size_t)V);
   for (int v = 0; v < V; ++v) lattice.to_param(&X[3 * (size_t)v], &c.param[3 * (size_t)v]);

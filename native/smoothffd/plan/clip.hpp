@@ -60,8 +60,19 @@ struct ClipResult {
   int patches() const { return (int)patch_tri.size(); }
 };
 
-// X: #V x 3 input positions; tv: #T x 3 triangles.
+// An earlier clipping of the same triangles (another pose): its pieces' triangles (patch_vertex,
+// patch_tri, in triangle order, as ClipResult's).
+struct ClipHint {
+  const std::vector<int>& patch_vertex;
+  const std::vector<int>& patch_tri;
+};
+
+// X: #V x 3 input positions; tv: #T x 3 triangles. hint: where a piece is the same polygon of
+// the same sub-vertices as one of the hint's (the triangle crosses the knot planes as it did
+// there), it is cut into the hint's triangles, in their order, as long as none of them is
+// flat or turned over in the new shape; else by shape (below). So a sub-mesh follows a pose
+// without its pieces' diagonals flipping where two cuts are about equally good.
 ClipResult clip_to_knot_boxes(const std::vector<double>& X, const std::vector<int>& tv,
-                              const LatticeSpec& lattice);
+                              const LatticeSpec& lattice, const ClipHint* hint = nullptr);
 
 }  // namespace sffd

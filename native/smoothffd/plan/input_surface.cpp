@@ -3,11 +3,18 @@
 #include <utility>
 
 #include "smoothffd/plan/corner_normals.hpp"
+#include "smoothffd/plan/validate.hpp"
 
 namespace sffd {
 
-InputSurface build_input_surface(const InputMesh& mesh, double cos_tol) {
-  Triangulation tr = triangulate_polygons(mesh.positions, mesh.corner_vertex, mesh.face_offset);
+InputSurface build_input_surface(const InputMesh& mesh, double cos_tol, const Triangulation* triangulation) {
+  Triangulation tr;
+  if (triangulation) {
+    check_triangulation(mesh, *triangulation);
+    tr = *triangulation;
+  } else {
+    tr = triangulate_polygons(mesh.positions, mesh.corner_vertex, mesh.face_offset);
+  }
   std::vector<int> tv(tr.corners.size());
   for (size_t i = 0; i < tv.size(); ++i) tv[i] = mesh.corner_vertex[tr.corners[i]];
   std::vector<double> tcn = triangle_corner_normals(mesh, tr, tv);

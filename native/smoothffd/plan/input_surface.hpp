@@ -23,7 +23,10 @@ struct InputSurface {
                                 // on flat faces (flat_triangles); bounded by a later stage
 };
 
-// cos_tol: the cosine of the sharp angle (PlanOptions::sharp_angle_degrees).
-InputSurface build_input_surface(const InputMesh& mesh, double cos_tol);
+// cos_tol: the cosine of the sharp angle (PlanOptions::sharp_angle_degrees). triangulation:
+// the input's polygons as these triangles (a plan's input_triangle_corner and
+// input_triangle_face, checked against the mesh), or null: triangulate_polygons of the mesh's
+// own shape.
+InputSurface build_input_surface(const InputMesh& mesh, double cos_tol, const Triangulation* triangulation = nullptr);
 
 }  // namespace sffd

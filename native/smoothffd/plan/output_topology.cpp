@@ -4,6 +4,7 @@
 #include <string>
 
 #include "smoothffd/core/cancel.hpp"
+#include "smoothffd/core/parallel.hpp"
 #include "smoothffd/plan/sources.hpp"
 
 namespace sffd {
@@ -21,9 +22,6 @@ void build_output_topology(Plan& plan, const TessellationTables& tess, const std
   plan.local_triangles = tess.triangles;
   plan.patch_grid_vertex.resize((size_t)P * G);
   plan.output_owner.assign(2 * (size_t)(N - SV), -1);
-  plan.rest_positions.resize(3 * (size_t)N);
-  for (int v = 0; v < SV; ++v)
-    for (int i = 0; i < 3; ++i) plan.rest_positions[3 * (size_t)v + i] = (float)rest[3 * (size_t)v + i];
   CancelPoller poller(256);
   for (int p = 0; p < P; ++p) {
     poller.tick();
@@ -43,15 +41,11 @@ void build_output_topology(Plan& plan, const TessellationTables& tess, const std
       if (o >= SV && plan.output_owner[2 * (o - SV)] < 0) {
         plan.output_owner[2 * (o - SV)] = p;
         plan.output_owner[2 * (o - SV) + 1] = g;
-        const double* b = &tess.bary[3 * g];
-        for (int i = 0; i < 3; ++i) {
-          double x = 0;
-          for (int c = 0; c < 3; ++c) x += b[c] * rest[3 * (size_t)cv[c] + i];
-          plan.rest_positions[3 * o + i] = (float)x;
-        }
       }
     }
   }
+  plan.output_vertices = (int)N;
+  plan.rest_positions = output_rest_positions(plan, tess, rest);
   plan.triangles.resize(3 * (size_t)T);
   plan.face_index.resize(T);
   const int LL = L * L;
@@ -64,10 +58,7 @@ void build_output_topology(Plan& plan, const TessellationTables& tess, const std
         plan.triangles[3 * ot + c] = plan.patch_grid_vertex[(size_t)p * G + tess.triangles[3 * t + c]];
     }
   plan.level = L;  // interpolate_corners reads it
-  if (!corner_uv.empty()) {
-    plan.uvs.resize(6 * (size_t)T);
-    interpolate_corners(plan, corner_uv.data(), 2, plan.uvs.data());
-  }
+  plan.uvs = output_uvs(plan, corner_uv);
   for (int e = 0; e < E; ++e) {
     if (!(plan.edge_flags[e] & (kSharpAtA | kSharpAtB))) continue;
     int prev = plan.edge_vertex[2 * e];
@@ -79,8 +70,36 @@ void build_output_topology(Plan& plan, const TessellationTables& tess, const std
     }
   }
   plan.grid = G;
-  plan.output_vertices = (int)N;
   plan.output_triangles = (int)T;
+}
+
+std::vector<float> output_rest_positions(const Plan& plan, const TessellationTables& tess,
+                                         const std::vector<double>& rest) {
+  const long long SV = plan.sub_vertices, N = plan.output_vertices;
+  std::vector<float> out(3 * (size_t)N);
+  for (long long v = 0; v < SV; ++v)
+    for (int i = 0; i < 3; ++i) out[3 * v + i] = (float)rest[3 * v + i];
+  parallel_for(N - SV, default_threads(), [&](long long b, long long e) {
+    for (long long j = b; j < e; ++j) {
+      const int p = plan.output_owner[2 * j], g = plan.output_owner[2 * j + 1];
+      const int* cv = &plan.patch_vertex[3 * (size_t)p];
+      const double* w = &tess.bary[3 * (size_t)g];
+      for (int i = 0; i < 3; ++i) {
+        double x = 0;
+        for (int c = 0; c < 3; ++c) x += w[c] * rest[3 * (size_t)cv[c] + i];
+        out[3 * (SV + j) + i] = (float)x;
+      }
+    }
+  });
+  return out;
+}
+
+std::vector<float> output_uvs(const Plan& plan, const std::vector<float>& corner_uv) {
+  std::vector<float> uvs;
+  if (corner_uv.empty()) return uvs;
+  uvs.resize(6 * (size_t)plan.patch_triangle.size() * plan.level * plan.level);
+  interpolate_corners(plan, corner_uv.data(), 2, uvs.data());
+  return uvs;
 }
 
 }  // namespace sffd

@@ -25,4 +25,13 @@ namespace sffd {
 void build_output_topology(Plan& plan, const TessellationTables& tess, const std::vector<double>& rest,
                            const std::vector<float>& corner_uv);
 
+// The parts of the static output that depend on positions, from a plan's output topology
+// (patch_vertex, output_owner, sub_vertices, output_vertices): the rest positions (N x 3) of the
+// sub-vertices at `rest` (SV x 3) ...
+std::vector<float> output_rest_positions(const Plan& plan, const TessellationTables& tess,
+                                         const std::vector<double>& rest);
+// ... and the UVs at the output corners (T x 3 x 2; empty without corner_uv), which follow
+// the patches' corners on their input triangles (patch_bary; interpolate_corners).
+std::vector<float> output_uvs(const Plan& plan, const std::vector<float>& corner_uv);
+
 }  // namespace sffd

@@ -91,7 +91,16 @@ double estimate_plan_bytes(double P, double SV, int level, int fit_degree, bool 
   return P * per_patch + E * per_edge + T * per_triangle + N * per_vertex + S * per_sample;
 }
 
-Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt) {
+namespace {
+
+// The plan build's stages. triangulation: the input's (else triangulate_polygons by its
+// shape). like: a plan whose pieces' triangles the clipping keeps where it can (ClipHint).
+// previous: a plan of the same connectivity, options and lattice structure whose output
+// topology and render vertices are taken over (moved out of it, at the very end, after
+// everything that can throw) when the new clipping gives the very same sub-mesh with the same
+// edge flags; *kept says whether they were.
+Plan build(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt,
+           const Triangulation* triangulation, const Plan* like, Plan* previous, bool* kept) {
   check_input_mesh(mesh);
   if (opt.level < 1) throw std::invalid_argument("level: must be at least 1");
   // The tessellation tables grow as L^2 whatever the mesh: level 2^31 - 1 from the bindings
@@ -106,13 +115,14 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   const double cos_tol = std::cos(opt.sharp_angle_degrees * M_PI / 180.0);
 
   // 1. The input surface: triangles, corner normals, sharp edge ends, flat faces.
-  InputSurface in = build_input_surface(mesh, cos_tol);
+  InputSurface in = build_input_surface(mesh, cos_tol, triangulation);
   timer.lap("triangulate");
 
   // 2. Knot-box clipping (the patch count, checked against the memory limit before any table of
   // that size); the rest surface, bounded so that no patch nor piece folds; the clip vertices
   // moved onto it.
-  ClipResult clip = clip_to_knot_boxes(X, in.tv, lattice);
+  const ClipHint hint{like ? like->patch_vertex : in.tv, like ? like->patch_triangle : in.tv};
+  ClipResult clip = clip_to_knot_boxes(X, in.tv, lattice, like ? &hint : nullptr);
   check_memory_limit(opt, mesh, lattice, (int)(in.tv.size() / 3), clip);
   BoundedRest rest = bound_rest_surface(X, in, clip);
   SubVertices sub_vertices = place_sub_vertices(mesh, in, rest.surface, clip);
@@ -138,12 +148,44 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
     const FitTables fit = build_fit_tables(std::max(3, lattice.degree_sum()));
     const std::vector<double> sample_exact = build_samples(plan, fit, sub_vertices);
     locate_samples(plan, lattice, sample_exact);
+    timer.lap("samples");
     build_centre_rows(plan, lattice, fit, sample_exact);
   }
-  timer.lap("samples");
+  timer.lap("centre_rows");
 
-  // 5. The welded output topology and its render vertices.
+  // 5. The welded output topology and its render vertices: the previous plan's where the
+  // sub-mesh and its edges' flags are the same (they depend on nothing else), with the rest
+  // positions and UVs of this one.
   const TessellationTables tess = build_tessellation(opt.level);
+  const bool same = previous && previous->level == opt.level && previous->sub_vertices == plan.sub_vertices &&
+                    previous->patch_vertex == plan.patch_vertex && previous->patch_triangle == plan.patch_triangle &&
+                    previous->edge_flags == plan.edge_flags;
+  if (kept) *kept = same;
+  if (same) {
+    plan.rest_positions = output_rest_positions(*previous, tess, clip.flat);
+    plan.level = opt.level;
+    plan.uvs = output_uvs(plan, mesh.corner_uv);
+    build_lattice_tables(plan, lattice);
+    // Nothing below throws: the previous plan gives up its tables only now.
+    Plan& q = *previous;
+    plan.grid_basis = std::move(q.grid_basis);
+    plan.local_triangles = std::move(q.local_triangles);
+    plan.patch_grid_vertex = std::move(q.patch_grid_vertex);
+    plan.output_owner = std::move(q.output_owner);
+    plan.triangles = std::move(q.triangles);
+    plan.face_index = std::move(q.face_index);
+    plan.sharp_edges = std::move(q.sharp_edges);
+    plan.render_owner = std::move(q.render_owner);
+    plan.render_position = std::move(q.render_position);
+    plan.patch_grid_render = std::move(q.patch_grid_render);
+    plan.render_triangles = std::move(q.render_triangles);
+    plan.grid = q.grid;
+    plan.output_vertices = q.output_vertices;
+    plan.output_triangles = q.output_triangles;
+    plan.render_vertices = q.render_vertices;
+    timer.lap("kept_topology");
+    return plan;
+  }
   build_output_topology(plan, tess, clip.flat, mesh.corner_uv);
   timer.lap("tessellation");
   build_render_vertices(plan, plan.sub_vertices, tess, sub.face_count);
@@ -152,6 +194,30 @@ Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOpt
   // 6. The lattice tables for the evaluators.
   build_lattice_tables(plan, lattice);
   return plan;
+}
+
+}  // namespace
+
+Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt,
+                const Triangulation* triangulation) {
+  return build(mesh, lattice, opt, triangulation, nullptr, nullptr, nullptr);
+}
+
+Plan build_plan_like(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt, const Plan& like) {
+  const Triangulation tr{like.input_triangle_corner, like.input_triangle_face};
+  return build(mesh, lattice, opt, &tr, &like, nullptr, nullptr);
+}
+
+bool follow_plan(Plan& plan, const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt) {
+  if (opt.level != plan.level)
+    throw std::invalid_argument("follow_plan: the options' level differs from the plan's");
+  if ((int)(mesh.positions.size() / 3) != plan.input_vertices || (int)mesh.corner_vertex.size() != plan.input_corners)
+    throw std::invalid_argument("follow_plan: the mesh's vertex or corner count differs from the plan's");
+  const Triangulation tr{plan.input_triangle_corner, plan.input_triangle_face};
+  bool kept = false;
+  Plan next = build(mesh, lattice, opt, &tr, &plan, &plan, &kept);
+  plan = std::move(next);
+  return kept;
 }
 
 }  // namespace sffd

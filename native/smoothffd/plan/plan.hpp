@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "smoothffd/lattice/lattice_spec.hpp"
+#include "smoothffd/mesh/triangulate.hpp"
 
 namespace sffd {
 
@@ -213,7 +214,30 @@ struct Plan {
   size_t bytes() const;  // host memory held
 };
 
-// Builds the plan. Throws std::invalid_argument on invalid input.
-Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& options);
+// Builds the plan. Throws std::invalid_argument on invalid input. triangulation: the input's
+// polygons as these triangles of corners (checked: each three distinct corners of its face),
+// or null: ear clipping by the polygons' current shape (mesh/triangulate.hpp). A plan's own
+// (input_triangle_corner, input_triangle_face) keeps its triangles for the same connectivity
+// in another pose.
+Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& options,
+                const Triangulation* triangulation = nullptr);
+
+// The plan build_plan makes of `mesh` with the triangles of `like` (a plan of the same
+// connectivity in another pose), whose pieces' triangles the knot-box clipping keeps wherever a
+// triangle crosses the knot planes as it did there (ClipHint, plan/clip.hpp).
+Plan build_plan_like(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& options, const Plan& like);
+
+// The plan of the same input in a new pose (positions, normals, UVs or weights changed; the
+// connectivity, the options and the lattice structure the same): exactly
+// build_plan_like(mesh, lattice, options, plan), which replaces `plan`. Everything that
+// depends on positions is computed again (the corner normals, the knot-box clipping, the rest
+// surface, the samples, their pieces and the centre rows); the output topology and the render
+// vertices, the largest tables, are kept where the clipping gives the same sub-mesh with the
+// same sharp and flat edges (no face crossed a knot plane differently, no normal split or
+// joined). Returns whether they were: then the output's triangles, face indices, sharp edges
+// and render vertices are the same as before. Throws as build_plan (`plan` is left as it was)
+// and std::invalid_argument when the mesh's vertex or corner count, or its faces' corners, or
+// the level differ from the plan's. Evaluators of the old plan must not be used after it.
+bool follow_plan(Plan& plan, const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& options);
 
 }  // namespace sffd

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace sffd {
 
@@ -25,6 +26,26 @@ void check_input_mesh(const InputMesh& m) {
     throw std::invalid_argument("vertex_weights: expected one weight per vertex");
   for (double x : m.positions)
     if (!std::isfinite(x)) throw std::invalid_argument("positions: contain NaN or Inf");
+}
+
+void check_triangulation(const InputMesh& m, const Triangulation& tr) {
+  const size_t T = tr.face.size(), F = m.face_offset.size() - 1;
+  if (tr.corners.size() != 3 * T)
+    throw std::invalid_argument("triangulation: expected three corners and one face a triangle");
+  std::vector<int> per_face(F, 0);
+  for (size_t t = 0; t < T; ++t) {
+    const int f = tr.face[t];
+    if (f < 0 || (size_t)f >= F)
+      throw std::invalid_argument("triangulation: triangle " + std::to_string(t) + "'s face is out of range");
+    const int* c = &tr.corners[3 * t];
+    for (int k = 0; k < 3; ++k)
+      if (c[k] < m.face_offset[f] || c[k] >= m.face_offset[f + 1] || c[k] == c[(k + 1) % 3])
+        throw std::invalid_argument("triangulation: triangle " + std::to_string(t) +
+                                    " is not three distinct corners of its face (the mesh's faces differ "
+                                    "from those it was made for)");
+    if (++per_face[f] > m.face_offset[f + 1] - m.face_offset[f] - 2)
+      throw std::invalid_argument("triangulation: face " + std::to_string(f) + " has more triangles than corners - 2");
+  }
 }
 
 void check_lattice_structure(const LatticeSpec& lattice) {

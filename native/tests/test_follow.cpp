@@ -1,0 +1,174 @@
+// Unit tests of follow_plan (plan/plan.hpp): a plan moved to a new pose is exactly the plan
+// build_plan_like makes of the new pose (the first plan's triangles, its pieces' diagonals
+// where the crossings are the same); its output topology is kept while the sub-mesh and its
+// edges' flags are the same, and only then.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <stdexcept>
+
+#include "smoothffd/plan/plan.hpp"
+#include "test_util.hpp"
+
+using namespace sffd;
+using namespace sffd_test;
+
+namespace {
+
+// Every table of the two plans, compared value for value.
+void expect_same_plan(const Plan& a, const Plan& b) {
+#define SAME(f) EXPECT_TRUE(a.f == b.f) << #f
+  SAME(input_vertices); SAME(sub_vertices); SAME(patches); SAME(edges); SAME(samples);
+  SAME(output_vertices); SAME(output_triangles); SAME(render_vertices); SAME(level); SAME(grid);
+  SAME(sample_position); SAME(sample_piece); SAME(sample_weight); SAME(sample_local);
+  SAME(fit_matrix); SAME(column_bary); SAME(patch_samples);
+  SAME(centre_box); SAME(centre_start); SAME(centre_row); SAME(centre_constant);
+  SAME(patch_vertex); SAME(patch_edge); SAME(patch_edge_reversed); SAME(patch_render_normal);
+  SAME(patch_adjust_normal); SAME(patch_face);
+  SAME(edge_vertex); SAME(edge_constraint); SAME(edge_patch); SAME(edge_slot); SAME(edge_flags);
+  SAME(grid_basis); SAME(local_triangles); SAME(patch_grid_vertex); SAME(output_owner);
+  SAME(rest_positions); SAME(triangles); SAME(face_index); SAME(uvs); SAME(sharp_edges);
+  SAME(render_owner); SAME(render_position); SAME(patch_grid_render); SAME(render_triangles);
+  SAME(input_triangle_corner); SAME(input_triangle_face); SAME(patch_triangle); SAME(patch_bary);
+#undef SAME
+}
+
+Triangulation triangulation_of(const Plan& p) { return {p.input_triangle_corner, p.input_triangle_face}; }
+
+// The cube of quads around the knot planes at 0.5 of a 4-point quadratic lattice, with UVs.
+InputMesh cube_with_uvs() {
+  InputMesh m = cube_quads(0.2, 0.8);
+  for (size_t c = 0; c < m.corner_vertex.size(); ++c) {
+    m.corner_uv.push_back(0.1f * (float)(c % 4));
+    m.corner_uv.push_back(0.05f * (float)c);
+  }
+  return m;
+}
+
+PlanOptions level(int L) {
+  PlanOptions o;
+  o.level = L;
+  return o;
+}
+
+}  // namespace
+
+// Every vertex moved by up to 0.004 (the cube's faces from 0.2 to 0.8, the planes at 0.5): every
+// face crosses the planes as before (the two cuts of a face's diagonal through its centre stay
+// within each other's snap distance), so the sub-mesh is the same and the output topology is
+// kept; the plan is the fresh one's.
+TEST(Follow, SmallMoveKeepsTopologyAndEqualsAFreshPlan) {
+  const LatticeSpec s = bspline_box(2, 4);
+  InputMesh m = cube_with_uvs();
+  Plan plan = build_plan(m, s, level(3));
+  ASSERT_GT(plan.patches, 12);  // the planes at 0.5 cut every face
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> jitter(-0.004, 0.004);
+  for (int step = 0; step < 4; ++step) {
+    InputMesh moved = m;
+    for (double& x : moved.positions) x += jitter(rng);
+    const Plan before_follow = plan;
+    const std::vector<int> triangles = plan.triangles;
+    const std::vector<float> rest = plan.rest_positions;
+    EXPECT_TRUE(follow_plan(plan, moved, s, level(3))) << "step " << step;
+    EXPECT_EQ(plan.triangles, triangles);
+    EXPECT_NE(plan.rest_positions, rest);
+    expect_same_plan(plan, build_plan_like(moved, s, level(3), before_follow));
+  }
+}
+
+// A vertex moved across a knot plane changes which faces the plane cuts: the topology is
+// built again, and the plan is still the fresh one's.
+TEST(Follow, CrossingAPlaneBuildsTheTopologyAgain) {
+  const LatticeSpec s = bspline_box(2, 4);
+  InputMesh m = cube_with_uvs();
+  Plan plan = build_plan(m, s, level(2));
+  const int patches = plan.patches;
+  InputMesh moved = m;
+  moved.positions[0] = 0.6;  // vertex 0 (0.2, 0.2, 0.2) past x = 0.5
+  const Plan before_follow = plan;
+  EXPECT_FALSE(follow_plan(plan, moved, s, level(2)));
+  EXPECT_NE(plan.patches, patches);
+  expect_same_plan(plan, build_plan_like(moved, s, level(2), before_follow));
+}
+
+// A new sharp edge (one face's corner normals turned to its own normal, away from its
+// neighbours') changes the edge flags and the render vertices: the topology is built again.
+TEST(Follow, ANewSharpEdgeBuildsTheTopologyAgain) {
+  const LatticeSpec s = bspline_box(2, 4);
+  InputMesh smooth = octahedron();  // centre 0.5, radius 0.4: unit vertex normals (p - 0.5) / 0.4
+  for (int v : smooth.corner_vertex)
+    for (int i = 0; i < 3; ++i) smooth.corner_normal.push_back((float)((smooth.positions[3 * v + i] - 0.5) / 0.4));
+  InputMesh turned = smooth;
+  const int* f = &smooth.corner_vertex[0];  // face 0: corners 0, 1, 2
+  double n[3] = {0, 0, 0};
+  for (int c = 0; c < 3; ++c)
+    for (int i = 0; i < 3; ++i) n[i] += smooth.positions[3 * f[c] + i] - 0.5;  // the face's normal direction
+  const double l = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+  for (int c = 0; c < 3; ++c)
+    for (int i = 0; i < 3; ++i) turned.corner_normal[3 * c + i] = (float)(n[i] / l);
+  Plan plan = build_plan(smooth, s, level(2));
+  EXPECT_EQ(plan.render_vertices, plan.output_vertices);  // no normal splits
+  const Plan before_follow = plan;
+  EXPECT_FALSE(follow_plan(plan, turned, s, level(2)));
+  EXPECT_GT(plan.render_vertices, plan.output_vertices);
+  expect_same_plan(plan, build_plan_like(turned, s, level(2), before_follow));
+}
+
+// The triangles stay the first plan's even where the new shape would be cut along the other
+// diagonal: a quad folded along its first diagonal is triangulated along the second afresh.
+TEST(Follow, KeepsTheFirstTriangulation) {
+  const LatticeSpec s = bspline_box(2, 4);
+  InputMesh m;
+  m.positions = {0.3, 0.3, 0.4, 0.7, 0.3, 0.4, 0.7, 0.7, 0.4, 0.3, 0.7, 0.4};
+  m.corner_vertex = {0, 1, 2, 3};
+  m.face_offset = {0, 4};
+  Plan plan = build_plan(m, s, level(2));
+  InputMesh skew = m;
+  skew.positions[3 * 1 + 0] = 0.45;  // corner 1 pulled in: the 0-2 diagonal gets a sliver
+  skew.positions[3 * 1 + 1] = 0.42;
+  const Plan fresh = build_plan(skew, s, level(2));
+  ASSERT_NE(fresh.input_triangle_corner, plan.input_triangle_corner);
+  const Plan before_follow = plan;
+  follow_plan(plan, skew, s, level(2));
+  EXPECT_EQ(plan.input_triangle_corner, before_follow.input_triangle_corner);
+  expect_same_plan(plan, build_plan_like(skew, s, level(2), before_follow));
+}
+
+// Refused input leaves the plan as it was.
+TEST(Follow, RefusesAnotherMeshAndKeepsThePlan) {
+  const LatticeSpec s = bspline_box(2, 4);
+  InputMesh m = cube_with_uvs();
+  Plan plan = build_plan(m, s, level(2));
+  const Plan before = plan;
+  InputMesh fewer = octahedron();
+  EXPECT_THROW(follow_plan(plan, fewer, s, level(2)), std::invalid_argument);
+  EXPECT_THROW(follow_plan(plan, m, s, level(3)), std::invalid_argument);
+  InputMesh nan = m;
+  nan.positions[4] = NAN;
+  EXPECT_THROW(follow_plan(plan, nan, s, level(2)), std::invalid_argument);
+  expect_same_plan(plan, before);
+  // A triangulation whose triangle takes a corner of another face.
+  Triangulation bad = triangulation_of(plan);
+  bad.corners[0] = m.face_offset[1];
+  EXPECT_THROW(build_plan(m, s, level(2), &bad), std::invalid_argument);
+}
+
+// Frames of a followed plan are bitwise those of the fresh plan's (the same tables).
+TEST(Follow, FramesEqualAFreshPlans) {
+  const LatticeSpec s = bspline_box(2, 4);
+  InputMesh m = cube_with_uvs();
+  auto plan = std::make_shared<Plan>(build_plan(m, s, level(4)));
+  InputMesh moved = m;
+  for (size_t i = 0; i < moved.positions.size(); i += 3) moved.positions[i + 2] += 0.02 * moved.positions[i];
+  auto fresh = std::make_shared<const Plan>(build_plan_like(moved, s, level(4), *plan));
+  follow_plan(*plan, moved, s, level(4));
+  std::vector<float> D = zero_values(s);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-0.05f, 0.05f);
+  for (float& d : D) d = u(rng);
+  const CpuOut a = run_cpu(plan, D), b = run_cpu(fresh, D);
+  EXPECT_EQ(a.pos, b.pos);
+  EXPECT_EQ(a.nrm, b.nrm);
+}

@@ -530,12 +530,13 @@ PYBIND11_MODULE(_core, m) {
                    std::optional<Arr<float>> corner_normals, std::optional<Arr<float>> uvs,
                    std::optional<Arr<float>> vertex_weights, const LatticeSpec& spec, int level,
                    double sharp_angle_degrees, double memory_limit, std::optional<py::tuple> triangulation,
-                   std::shared_ptr<Plan> like) {
+                   std::shared_ptr<Plan> like, bool centre_rows) {
         InputMesh mesh = input_mesh(positions, corner_vertex, face_offset, corner_normals, uvs, vertex_weights);
         PlanOptions opt;
         opt.level = level;
         opt.sharp_angle_degrees = sharp_angle_degrees;
         opt.memory_limit = memory_limit;
+        opt.centre_rows = centre_rows;
         Triangulation tr;
         if (triangulation) {
           if (triangulation->size() != 2)
@@ -552,7 +553,7 @@ PYBIND11_MODULE(_core, m) {
       py::arg("positions"), py::arg("corner_vertices"), py::arg("face_offsets"),
       py::arg("corner_normals"), py::arg("uvs"), py::arg("vertex_weights"), py::arg("lattice"),
       py::arg("level"), py::arg("sharp_angle_degrees") = 1.0, py::arg("memory_limit") = 0.0,
-      py::arg("triangulation") = py::none(), py::arg("like") = nullptr,
+      py::arg("triangulation") = py::none(), py::arg("like") = nullptr, py::arg("centre_rows") = true,
       "triangulation: (corners (T, 3), faces (T,)) the input's triangles (a plan's "
       "input_triangles() for the same connectivity), or None: ear clipping by the current shape. "
       "like: a plan of the same connectivity in another pose, whose triangles, and whose pieces' "
@@ -563,7 +564,7 @@ PYBIND11_MODULE(_core, m) {
       [input_mesh](const std::shared_ptr<Plan>& plan, Arr<double> positions, Arr<int> corner_vertex, Arr<int> face_offset,
                    std::optional<Arr<float>> corner_normals, std::optional<Arr<float>> uvs,
                    std::optional<Arr<float>> vertex_weights, const LatticeSpec& spec,
-                   double sharp_angle_degrees, double memory_limit) {
+                   double sharp_angle_degrees, double memory_limit, bool centre_rows) {
         // The Python object and its argument caster hold the plan; anything more is an
         // evaluator (or another owner) that would read tables changed under it.
         if (plan.use_count() > 2)
@@ -573,11 +574,12 @@ PYBIND11_MODULE(_core, m) {
         opt.level = plan->level;
         opt.sharp_angle_degrees = sharp_angle_degrees;
         opt.memory_limit = memory_limit;
+        opt.centre_rows = centre_rows;
         return interruptible([&] { return follow_plan(*plan, mesh, spec, opt); });
       },
       py::arg("plan"), py::arg("positions"), py::arg("corner_vertices"), py::arg("face_offsets"),
       py::arg("corner_normals"), py::arg("uvs"), py::arg("vertex_weights"), py::arg("lattice"),
-      py::arg("sharp_angle_degrees") = 1.0, py::arg("memory_limit") = 0.0,
+      py::arg("sharp_angle_degrees") = 1.0, py::arg("memory_limit") = 0.0, py::arg("centre_rows") = true,
       "Replaces plan by the plan of the same input in a new pose (build_plan with the plan's own "
       "triangulation), keeping its output topology where no face crosses the knot planes "
       "differently and no normal splits or joins; returns whether it was kept. Refused while an "

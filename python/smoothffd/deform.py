@@ -261,7 +261,8 @@ class Deformer:
                 kept = _core.follow_plan(self.plan, mesh.positions, mesh.corner_vertices,
                                          mesh.face_offsets, mesh.corner_normals, mesh.uvs,
                                          mesh.vertex_weights, self.lattice._spec,
-                                         memory_limit=float(avail) if avail else 0.0)
+                                         memory_limit=float(avail) if avail else 0.0,
+                                         centre_rows=False)
             finally:
                 self._make_evaluator()
             self.mesh = mesh

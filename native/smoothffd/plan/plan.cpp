@@ -149,7 +149,7 @@ Plan build(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions&
     const std::vector<double> sample_exact = build_samples(plan, fit, sub_vertices);
     locate_samples(plan, lattice, sample_exact);
     timer.lap("samples");
-    build_centre_rows(plan, lattice, fit, sample_exact);
+    if (opt.centre_rows) build_centre_rows(plan, lattice, fit, sample_exact);
   }
   timer.lap("centre_rows");
 

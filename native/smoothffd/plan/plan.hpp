@@ -56,6 +56,10 @@ struct PlanOptions {
   // limit. Checked right after the knot-box clipping, which decides the patch count, before
   // any table of the patches' or the output's size is allocated.
   double memory_limit = 0;
+  // Whether to build the centre rows (Plan::centre_row): they make positions-only frames about
+  // four times cheaper and cost about two of them to build, so a plan that follows a moving
+  // input every frame (follow_plan) does better without them.
+  bool centre_rows = true;
 };
 
 // What build_plan throws when PlanOptions::memory_limit is exceeded (MemoryError in Python),

@@ -1,0 +1,178 @@
+"""A plan that follows the pose (Deformer.follow; native follow_plan, docs/algorithm.md "A plan
+that follows the pose"): a mesh of the same faces in a new pose moves the plan instead of
+planning it again.
+
+* After every pose of a bend animation (a bone's smooth-skinned bend of a real mesh, its corner
+  normals turned with it), the result is bitwise that of a plan built for the pose with
+  build_plan(like=the plan before it), evaluated on its own evaluator;
+* the deformed input vertices are the exact FFD of the posed vertices (the independent numpy
+  B-spline volume of tests/reference.py) within float rounding, as a freshly planned Deformer's
+  are, whatever triangulation that one chose;
+* the first plan's triangles stay; a small pose change keeps the output topology (the very
+  same triangle arrays), a vertex crossing a knot plane does not;
+* a mesh with other faces is refused and the Deformer keeps working;
+* on CUDA, the followed frames equal the CPU's within float rounding.
+"""
+
+import numpy as np
+import pytest
+
+import smoothffd
+from smoothffd import _core
+from smoothffd.deform import _control_values_f32
+
+import test_real_meshes as real
+
+LEVEL = 3
+
+
+def bend(mesh, angle):
+    """The mesh bent about the y axis through its centre, as a two-bone Armature with smooth
+    weights bends it: vertices past the centre in x turn by up to `angle` (radians), blended over
+    the middle fifth of the mesh's width; each corner normal turns with its vertex."""
+    P = mesh.positions
+    c = 0.5 * (P.min(axis=0) + P.max(axis=0))
+    t = np.clip((P[:, 0] - c[0]) / (0.2 * float(np.ptp(P[:, 0]))) + 0.5, 0.0, 1.0)
+    a = angle * t * t * (3 - 2 * t)
+
+    def turn(v, a, about):
+        x, z = v[:, 0] - about[0], v[:, 2] - about[2]
+        return np.stack([np.cos(a) * x + np.sin(a) * z + about[0], v[:, 1],
+                         -np.sin(a) * x + np.cos(a) * z + about[2]], axis=1)
+
+    normals = None
+    if mesh.corner_normals is not None:
+        normals = turn(mesh.corner_normals.astype(np.float64), a[mesh.corner_vertices], np.zeros(3))
+    return smoothffd.Mesh(turn(P, a, c), (mesh.corner_vertices, mesh.face_offsets),
+                          corner_normals=normals, uvs=mesh.uvs)
+
+
+def _evaluate(plan, values):
+    ev = _core.CpuEvaluator(plan, 0)
+    positions, normals, _ = ev.evaluate(values)
+    return positions, normals
+
+
+def _plan_like(mesh, lattice, like):
+    return _core.build_plan(mesh.positions, mesh.corner_vertices, mesh.face_offsets,
+                            mesh.corner_normals, mesh.uvs, mesh.vertex_weights, lattice._spec, LEVEL,
+                            like=like, centre_rows=False)
+
+
+@pytest.mark.parametrize("name", ["suzanne", "figure", "goblet"])
+def test_follow_equals_a_plan_built_like_it_and_the_exact_ffd(name):
+    mesh = real.load(name)
+    lattice = real.lattice_for(mesh, mode="twist", amount=30.0)
+    values = _control_values_f32(lattice)
+    size = float(np.linalg.norm(np.ptp(mesh.positions, axis=0)))
+    exact = real.reference_lattice(lattice)
+    d = smoothffd.Deformer(mesh, lattice, level=LEVEL, device="cpu")
+    first = d.plan.input_triangles()
+    d.deform()
+    V = mesh.vertex_count
+    for f in range(1, 5):
+        posed = bend(mesh, 0.15 * f)
+        reference = _plan_like(posed, lattice, d.plan)
+        d.follow(posed)
+        res = d.deform()
+        pos, nrm = _evaluate(reference, values)
+        assert np.array_equal(res.positions, pos)
+        assert np.array_equal(res.corner_normals, nrm)
+        assert np.array_equal(res.triangles, reference.triangles())
+        assert np.array_equal(res.rest_positions, reference.rest_positions())
+        # The first plan's triangles, whatever this pose's shape would choose.
+        for a, b in zip(d.plan.input_triangles(), first):
+            assert np.array_equal(a, b)
+        # The deformed input vertices: the exact FFD of the posed ones (float rounding of
+        # coordinates up to about 1.5 x the mesh's size), as a fresh plan's.
+        F, _J = exact(posed.positions)
+        assert np.abs(res.positions[:V] - F).max() / size < 2e-6
+        fresh = smoothffd.Deformer(posed, lattice, level=LEVEL, device="cpu").deform()
+        assert np.abs(fresh.positions[:V] - res.positions[:V]).max() / size < 2e-6
+        assert res.positions.shape[0] > V  # the patches' own points are there too
+
+
+def test_small_pose_change_keeps_the_topology_and_a_crossing_does_not():
+    # Suzanne under a 5x5x5 lattice: the knot planes cut many of her faces. A pose change of
+    # 1e-6 of her size moves no cut past a snap threshold.
+    mesh = real.load("suzanne")
+    lattice = real.lattice_for(mesh, mode="twist", amount=30.0)
+    d = smoothffd.Deformer(mesh, lattice, level=LEVEL, device="cpu")
+    r0 = d.deform()
+    size = float(np.linalg.norm(np.ptp(mesh.positions, axis=0)))
+    nudged = smoothffd.Mesh(mesh.positions * (1 + 1e-6), (mesh.corner_vertices, mesh.face_offsets),
+                            corner_normals=mesh.corner_normals, uvs=mesh.uvs)
+    assert d.follow(nudged) is True
+    r1 = d.deform()
+    assert r1.triangles is r0.triangles and r1.face_index is r0.face_index
+    assert r1.sharp_edges is r0.sharp_edges
+    assert not np.array_equal(r1.rest_positions, r0.rest_positions)
+    assert 0 < np.abs(r1.positions - r0.positions).max() < 1e-4 * size
+    # A bend that takes half her vertices through knot planes: new pieces, new topology.
+    assert d.follow(bend(mesh, 0.4)) is False
+    r2 = d.deform()
+    assert r2.triangles is not r1.triangles
+    assert r2.triangles.shape != r1.triangles.shape or not np.array_equal(r2.triangles, r1.triangles)
+
+
+def test_other_faces_are_refused_and_the_deformer_keeps_working():
+    mesh = real.load("suzanne")
+    lattice = real.lattice_for(mesh)
+    d = smoothffd.Deformer(mesh, lattice, level=2, device="cpu")
+    before = d.deform().positions.copy()
+    other = real.load("figure")
+    with pytest.raises(ValueError, match="faces differ"):
+        d.follow(other)
+    shuffled = smoothffd.Mesh(mesh.positions, (np.roll(mesh.corner_vertices, 1), mesh.face_offsets))
+    with pytest.raises(ValueError, match="faces differ"):
+        d.follow(shuffled)
+    with pytest.raises(TypeError):
+        d.follow(mesh.positions)
+    assert np.array_equal(d.deform().positions, before)
+    # The core refuses to change a plan an evaluator still reads.
+    ev = _core.CpuEvaluator(d.plan, 0)
+    with pytest.raises(RuntimeError, match="evaluator"):
+        _core.follow_plan(d.plan, mesh.positions, mesh.corner_vertices, mesh.face_offsets,
+                          mesh.corner_normals, mesh.uvs, mesh.vertex_weights, lattice._spec)
+    del ev
+
+
+def test_adaptive_deformer_follows():
+    mesh = real.load("figure")
+    lattice = real.lattice_for(mesh, mode="twist", amount=30.0)
+    size = float(np.linalg.norm(np.ptp(mesh.positions, axis=0)))
+    tol = 1e-3 * size
+    d = smoothffd.Deformer(mesh, lattice, tolerance=tol, device="cpu")
+    d.deform()
+    posed = bend(mesh, 0.3)
+    reference = _core.build_plan(posed.positions, posed.corner_vertices, posed.face_offsets,
+                                 posed.corner_normals, posed.uvs, posed.vertex_weights, lattice._spec, 1,
+                                 like=d.plan, centre_rows=False)
+    d.follow(posed)
+    res = d.deform()
+    ref = _core.adaptive_frame(reference, _control_values_f32(lattice), tol, smoothffd.MAX_LEVEL,
+                               0, True, None, True)
+    assert np.array_equal(res.triangles, ref["triangles"])
+    assert np.array_equal(res.positions, ref["positions"])
+    assert res.stats["tolerance_met"]
+
+
+_USABLE, _WHY = smoothffd.cuda_status()
+
+
+@pytest.mark.skipif(not _USABLE, reason=f"no usable CUDA device: {_WHY}")
+def test_cuda_follows_as_the_cpu():
+    mesh = real.load("suzanne")
+    lattice = real.lattice_for(mesh, mode="twist", amount=30.0)
+    size = float(np.linalg.norm(np.ptp(mesh.positions, axis=0)))
+    cpu = smoothffd.Deformer(mesh, lattice, level=LEVEL, device="cpu")
+    gpu = smoothffd.Deformer(mesh, lattice, level=LEVEL, device="cuda")
+    for f in range(1, 4):
+        posed = bend(mesh, 0.15 * f)
+        assert cpu.follow(posed) == gpu.follow(posed)
+        a, b = cpu.deform(), gpu.deform()
+        assert gpu.device == "cuda"
+        assert np.array_equal(a.triangles, b.triangles)
+        assert np.abs(a.positions - b.positions).max() / size < 2e-6
+        cos = np.sum(a.corner_normals * b.corner_normals, axis=-1)
+        assert cos.min() > 1 - 1e-5

@@ -267,11 +267,8 @@ class Deformer:
                 self._make_evaluator()
             self.mesh = mesh
             if kept and self._static is not None:
-                self._static = dict(self._static, uvs=self.plan.uvs(),
-                                    rest_positions=self.plan.rest_positions())
-                for name in ("uvs", "rest_positions"):
-                    if self._static[name] is not None:
-                        self._static[name].setflags(write=False)
+                self._static.update(uvs=self.plan.uvs(), rest_positions=self.plan.rest_positions())
+                self._freeze()
             else:
                 self._static = None
             self.plan_ms = (time.perf_counter() - t0) * 1e3
@@ -298,17 +295,24 @@ class Deformer:
         log.info("smoothffd: using the CPU (%s)", why)
         return "cpu", f"CPU fallback: {why}"
 
-    def _static_arrays(self):
+    def _static_arrays(self, compact=False):
+        """The plan's arrays that are the same every frame, read-only, made once per plan (the
+        render tables only when a compact result asks for them: a corner-layout caller never
+        pays for their copy)."""
+        p = self.plan
         if self._static is None:
-            p = self.plan
-            render_vertex, render_triangles = p.render_vertices()
             self._static = dict(triangles=p.triangles(), face_index=p.face_index(), uvs=p.uvs(),
-                                rest_positions=p.rest_positions(), sharp_edges=p.sharp_edges(),
-                                render_vertex=render_vertex, render_triangles=render_triangles)
-            for a in self._static.values():
-                if a is not None:
-                    a.setflags(write=False)
+                                rest_positions=p.rest_positions(), sharp_edges=p.sharp_edges())
+            self._freeze()
+        if compact and "render_vertex" not in self._static:
+            self._static["render_vertex"], self._static["render_triangles"] = p.render_vertices()
+            self._freeze()
         return self._static
+
+    def _freeze(self):
+        for a in self._static.values():
+            if a is not None:
+                a.setflags(write=False)
 
     def deform(self, lattice_or_points=None, out=None, normals=True, layout="corners",
                incremental=False, estimate_error=False, hold=None):
@@ -460,7 +464,7 @@ class Deformer:
             self._fall_back_to_cpu(exc)  # e.g. out of device memory for the copy back
             positions, nrm, stages = self._evaluate(values, bufs, normals, compact)
         total = (time.perf_counter() - t0) * 1e3
-        s = self._static_arrays()
+        s = self._static_arrays(compact)
         p = self.plan
         stats = dict(device=self.device, device_message=self.device_message,
                      plan_ms=self.plan_ms, deform_ms=total, stage_ms=dict(stages),

@@ -45,7 +45,7 @@ void build_output_topology(Plan& plan, const TessellationTables& tess, const std
     }
   }
   plan.output_vertices = (int)N;
-  plan.rest_positions = output_rest_positions(plan, tess, rest);
+  output_rest_positions(plan, tess, rest, plan.rest_positions);
   plan.triangles.resize(3 * (size_t)T);
   plan.face_index.resize(T);
   const int LL = L * L;
@@ -58,7 +58,7 @@ void build_output_topology(Plan& plan, const TessellationTables& tess, const std
         plan.triangles[3 * ot + c] = plan.patch_grid_vertex[(size_t)p * G + tess.triangles[3 * t + c]];
     }
   plan.level = L;  // interpolate_corners reads it
-  plan.uvs = output_uvs(plan, corner_uv);
+  output_uvs(plan, corner_uv, plan.uvs);
   for (int e = 0; e < E; ++e) {
     if (!(plan.edge_flags[e] & (kSharpAtA | kSharpAtB))) continue;
     int prev = plan.edge_vertex[2 * e];
@@ -73,10 +73,10 @@ void build_output_topology(Plan& plan, const TessellationTables& tess, const std
   plan.output_triangles = (int)T;
 }
 
-std::vector<float> output_rest_positions(const Plan& plan, const TessellationTables& tess,
-                                         const std::vector<double>& rest) {
+void output_rest_positions(const Plan& plan, const TessellationTables& tess, const std::vector<double>& rest,
+                           std::vector<float>& out) {
   const long long SV = plan.sub_vertices, N = plan.output_vertices;
-  std::vector<float> out(3 * (size_t)N);
+  out.resize(3 * (size_t)N);
   for (long long v = 0; v < SV; ++v)
     for (int i = 0; i < 3; ++i) out[3 * v + i] = (float)rest[3 * v + i];
   parallel_for(N - SV, default_threads(), [&](long long b, long long e) {
@@ -91,15 +91,15 @@ std::vector<float> output_rest_positions(const Plan& plan, const TessellationTab
       }
     }
   });
-  return out;
 }
 
-std::vector<float> output_uvs(const Plan& plan, const std::vector<float>& corner_uv) {
-  std::vector<float> uvs;
-  if (corner_uv.empty()) return uvs;
+void output_uvs(const Plan& plan, const std::vector<float>& corner_uv, std::vector<float>& uvs) {
+  if (corner_uv.empty()) {
+    uvs.clear();
+    return;
+  }
   uvs.resize(6 * (size_t)plan.patch_triangle.size() * plan.level * plan.level);
   interpolate_corners(plan, corner_uv.data(), 2, uvs.data());
-  return uvs;
 }
 
 }  // namespace sffd

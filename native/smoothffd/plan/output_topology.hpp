@@ -26,12 +26,12 @@ void build_output_topology(Plan& plan, const TessellationTables& tess, const std
                            const std::vector<float>& corner_uv);
 
 // The parts of the static output that depend on positions, from a plan's output topology
-// (patch_vertex, output_owner, sub_vertices, output_vertices): the rest positions (N x 3) of the
-// sub-vertices at `rest` (SV x 3) ...
-std::vector<float> output_rest_positions(const Plan& plan, const TessellationTables& tess,
-                                         const std::vector<double>& rest);
+// (patch_vertex, output_owner, sub_vertices, output_vertices), each into `out` (resized; its
+// storage reused): the rest positions (N x 3) of the sub-vertices at `rest` (SV x 3) ...
+void output_rest_positions(const Plan& plan, const TessellationTables& tess, const std::vector<double>& rest,
+                           std::vector<float>& out);
 // ... and the UVs at the output corners (T x 3 x 2; empty without corner_uv), which follow
 // the patches' corners on their input triangles (patch_bary; interpolate_corners).
-std::vector<float> output_uvs(const Plan& plan, const std::vector<float>& corner_uv);
+void output_uvs(const Plan& plan, const std::vector<float>& corner_uv, std::vector<float>& out);
 
 }  // namespace sffd

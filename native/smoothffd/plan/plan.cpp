@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "smoothffd/core/cancel.hpp"
 #include "smoothffd/plan/adjacency.hpp"
 #include "smoothffd/plan/centre_rows.hpp"
 #include "smoothffd/plan/clip.hpp"
@@ -96,11 +97,18 @@ namespace {
 // The plan build's stages. triangulation: the input's (else triangulate_polygons by its
 // shape). like: a plan whose pieces' triangles the clipping keeps where it can (ClipHint).
 // previous: a plan of the same connectivity, options and lattice structure whose output
-// topology and render vertices are taken over (moved out of it, at the very end, after
-// everything that can throw) when the new clipping gives the very same sub-mesh with the same
-// edge flags; *kept says whether they were.
+// topology and render vertices are taken over when the new clipping gives the very same
+// sub-mesh with the same edge flags (*kept says whether they were), else whose arrays store the
+// new ones; it is given up (*gave_up) only after everything that depends on positions.
+// The output topology's and render vertices' index tables: what a plan that follows keeps, or
+// builds anew in the previous plan's storage.
+std::vector<int> Plan::* const kOutputTables[] = {
+    &Plan::patch_grid_vertex, &Plan::output_owner,     &Plan::triangles,         &Plan::face_index,
+    &Plan::sharp_edges,       &Plan::render_owner,     &Plan::render_position,   &Plan::patch_grid_render,
+    &Plan::render_triangles};
+
 Plan build(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt,
-           const Triangulation* triangulation, const Plan* like, Plan* previous, bool* kept) {
+           const Triangulation* triangulation, const Plan* like, Plan* previous, bool* kept, bool* gave_up) {
   check_input_mesh(mesh);
   if (opt.level < 1) throw std::invalid_argument("level: must be at least 1");
   // The tessellation tables grow as L^2 whatever the mesh: level 2^31 - 1 from the bindings
@@ -155,37 +163,38 @@ Plan build(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions&
 
   // 5. The welded output topology and its render vertices: the previous plan's where the
   // sub-mesh and its edges' flags are the same (they depend on nothing else), with the rest
-  // positions and UVs of this one.
+  // positions and UVs of this one. A plan that follows (previous given) gives its arrays up
+  // from here on, as the new plan's tables or as their storage (the same sizes within a few
+  // patches: no fresh pages to fault in, at high levels most of these stages' cost), so nothing
+  // below is cancelled: a cancel would leave neither plan whole.
   const TessellationTables tess = build_tessellation(opt.level);
   const bool same = previous && previous->level == opt.level && previous->sub_vertices == plan.sub_vertices &&
                     previous->patch_vertex == plan.patch_vertex && previous->patch_triangle == plan.patch_triangle &&
                     previous->edge_flags == plan.edge_flags;
   if (kept) *kept = same;
+  CancelScope uncancelled([] { return false; });
+  if (previous) {
+    if (gave_up) *gave_up = true;
+    for (auto table : kOutputTables) (plan.*table).swap(previous->*table);
+    plan.rest_positions.swap(previous->rest_positions);
+    plan.uvs.swap(previous->uvs);
+  }
   if (same) {
-    plan.rest_positions = output_rest_positions(*previous, tess, clip.flat);
-    plan.level = opt.level;
-    plan.uvs = output_uvs(plan, mesh.corner_uv);
-    build_lattice_tables(plan, lattice);
-    // Nothing below throws: the previous plan gives up its tables only now.
-    Plan& q = *previous;
-    plan.grid_basis = std::move(q.grid_basis);
-    plan.local_triangles = std::move(q.local_triangles);
-    plan.patch_grid_vertex = std::move(q.patch_grid_vertex);
-    plan.output_owner = std::move(q.output_owner);
-    plan.triangles = std::move(q.triangles);
-    plan.face_index = std::move(q.face_index);
-    plan.sharp_edges = std::move(q.sharp_edges);
-    plan.render_owner = std::move(q.render_owner);
-    plan.render_position = std::move(q.render_position);
-    plan.patch_grid_render = std::move(q.patch_grid_render);
-    plan.render_triangles = std::move(q.render_triangles);
+    const Plan& q = *previous;
+    plan.grid_basis = q.grid_basis;
+    plan.local_triangles = q.local_triangles;
     plan.grid = q.grid;
     plan.output_vertices = q.output_vertices;
     plan.output_triangles = q.output_triangles;
     plan.render_vertices = q.render_vertices;
+    plan.level = opt.level;
+    output_rest_positions(plan, tess, clip.flat, plan.rest_positions);
+    output_uvs(plan, mesh.corner_uv, plan.uvs);
+    build_lattice_tables(plan, lattice);
     timer.lap("kept_topology");
     return plan;
   }
+  for (auto table : kOutputTables) (plan.*table).clear();
   build_output_topology(plan, tess, clip.flat, mesh.corner_uv);
   timer.lap("tessellation");
   build_render_vertices(plan, plan.sub_vertices, tess, sub.face_count);
@@ -200,12 +209,12 @@ Plan build(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions&
 
 Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt,
                 const Triangulation* triangulation) {
-  return build(mesh, lattice, opt, triangulation, nullptr, nullptr, nullptr);
+  return build(mesh, lattice, opt, triangulation, nullptr, nullptr, nullptr, nullptr);
 }
 
 Plan build_plan_like(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt, const Plan& like) {
   const Triangulation tr{like.input_triangle_corner, like.input_triangle_face};
-  return build(mesh, lattice, opt, &tr, &like, nullptr, nullptr);
+  return build(mesh, lattice, opt, &tr, &like, nullptr, nullptr, nullptr);
 }
 
 bool follow_plan(Plan& plan, const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt) {
@@ -214,9 +223,14 @@ bool follow_plan(Plan& plan, const InputMesh& mesh, const LatticeSpec& lattice, 
   if ((int)(mesh.positions.size() / 3) != plan.input_vertices || (int)mesh.corner_vertex.size() != plan.input_corners)
     throw std::invalid_argument("follow_plan: the mesh's vertex or corner count differs from the plan's");
   const Triangulation tr{plan.input_triangle_corner, plan.input_triangle_face};
-  bool kept = false;
-  Plan next = build(mesh, lattice, opt, &tr, &plan, &plan, &kept);
-  plan = std::move(next);
+  bool kept = false, gave_up = false;
+  try {
+    Plan next = build(mesh, lattice, opt, &tr, &plan, &plan, &kept, &gave_up);
+    plan = std::move(next);
+  } catch (...) {
+    if (gave_up) plan = Plan();  // out of memory while building the new tables in the old ones
+    throw;
+  }
   return kept;
 }
 

@@ -239,9 +239,12 @@ Plan build_plan_like(const InputMesh& mesh, const LatticeSpec& lattice, const Pl
 // vertices, the largest tables, are kept where the clipping gives the same sub-mesh with the
 // same sharp and flat edges (no face crossed a knot plane differently, no normal split or
 // joined). Returns whether they were: then the output's triangles, face indices, sharp edges
-// and render vertices are the same as before. Throws as build_plan (`plan` is left as it was)
-// and std::invalid_argument when the mesh's vertex or corner count, or its faces' corners, or
-// the level differ from the plan's. Evaluators of the old plan must not be used after it.
+// and render vertices are the same as before. The old plan's arrays store the new one's (no
+// fresh memory to fault in). Throws as build_plan and std::invalid_argument when the mesh's
+// vertex or corner count, or its faces' corners, or the level differ from the plan's: `plan` is
+// then left as it was, except when memory runs out while its arrays are being reused (after
+// everything that depends on positions; nothing is cancelled there): then it is left empty (no
+// patches). Evaluators of the old plan must not be used after it.
 bool follow_plan(Plan& plan, const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& options);
 
 }  // namespace sffd

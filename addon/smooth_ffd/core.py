@@ -72,10 +72,16 @@ def lattice_to_object(object_matrix, lattice_matrix):
 def make_deformer(source, lattice, level, backend, tolerance=None, max_level=None):
     """The core's Deformer of a source mesh: at a level, or adaptive (tolerance, max_level)."""
     sf = smoothffd()
-    mesh = sf.Mesh(source.positions, (source.corner_vertices, source.face_offsets),
-                   corner_normals=source.corner_normals, uvs=source.uvs,
-                   vertex_weights=source.weights)
+    mesh = make_mesh(source)
     if tolerance is not None:
         return sf.Deformer(mesh, lattice, device=backend, tolerance=tolerance,
                            max_level=max_level)
     return sf.Deformer(mesh, lattice, level=level, device=backend)
+
+
+def make_mesh(source):
+    """The core's Mesh of a source mesh (meshio.SourceMesh): positions, faces, corner
+    normals, the render UV map and the Vertex Group's weights."""
+    return smoothffd().Mesh(source.positions, (source.corner_vertices, source.face_offsets),
+                            corner_normals=source.corner_normals, uvs=source.uvs,
+                            vertex_weights=source.weights)

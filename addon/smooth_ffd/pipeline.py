@@ -79,15 +79,16 @@ def update_modifier(obj, mod, p):
         fit_error = plans.fit_errors(st) if exact and (render or force or not live.playing()) else None
         t1 = time.perf_counter()
         if st.output[0] is not st.plan_key or tess.adaptive:
-            # A new plan often keeps the output topology (an armature's next pose: the same
-            # knot-plane cuts): then only positions and what lies on the input move. An
-            # adaptive frame may change it on any update.
+            # A new plan may have the output topology of the last one (a source edited without
+            # changing its faces' knot-plane cuts): then only positions and what lies on the
+            # input move. A plan that followed a new pose keeping its topology kept this too
+            # (plans.follow). An adaptive frame may change it on any update.
             output = inputs.digest(res.triangles, res.face_index, res.sharp_edges,
                                    len(res.positions), got.source.material_index)
             if tess.adaptive and output != st.output[1]:
                 st.scratch = (None, {})   # write_normals' per-topology facts
             st.output = (st.plan_key, output)
-        times = write.write_result(obj, mod, ro, res, got.source, inputs.digest(plan_key), exact,
+        times = write.write_result(obj, mod, ro, res, got.source, st.topology_token, exact,
                                    st, groups, fit_error)
         normals = times.pop("normals")
         t2 = time.perf_counter()

@@ -4,7 +4,7 @@ core's frame on it."""
 import bpy
 import numpy as np
 
-from . import core, state
+from . import core, inputs, state
 
 
 def lattice(st, rest, pts, interp, l2o, strength, weights):
@@ -39,26 +39,66 @@ class _progress:
 
 
 def ensure_plan(st, source, lattice, level, backend, tess=None):
-    """st.deformer for these inputs: the cached one while its key holds, else a new plan.
-    Returns the plan's key. tess (tessellation.Tess) adaptive: one adaptive plan on the
-    backend serves every tolerance and max level, which are set on it for each frame (the
-    plan does not depend on them: a camera moving in Screen mode replans nothing)."""
+    """st.deformer for these inputs: the cached one while its key holds, else one that
+    follows the new pose (follow), else a new plan. Returns the plan's key. tess
+    (tessellation.Tess) adaptive: one adaptive plan on the backend serves every tolerance and
+    max level, which are set on it for each frame (the plan does not depend on them: a camera
+    moving in Screen mode replans nothing)."""
     adaptive = tess is not None and tess.adaptive
-    plan_key = (source.key, lattice.structure_key(), "adaptive" if adaptive else level, backend)
+    structure, mode = lattice.structure_key(), "adaptive" if adaptive else level
+    plan_key = (source.key, structure, mode, backend)
     if st.deformer is None or st.plan_key != plan_key:
-        st.deformer = st.result = None
-        st.outs = {}
-        long = len(source.corner_vertices) * (1 if adaptive else level * level) > 2_000_000
-        with _progress(long):
-            st.deformer = core.make_deformer(source, lattice, level, backend,
-                                             tess.tolerance if adaptive else None,
-                                             tess.max_level if adaptive else None)
-        st.plan_key = plan_key
-        state.plans_built[0] += 1
+        faces_key = (source.topology_key, inputs.digest(source.material_index),
+                     source.uvs is None, source.weights is None, structure, mode, backend)
+        if not follow(st, source, faces_key, plan_key, adaptive):
+            st.deformer = st.result = None
+            st.outs = {}
+            long = len(source.corner_vertices) * (1 if adaptive else level * level) > 2_000_000
+            with _progress(long):
+                st.deformer = core.make_deformer(source, lattice, level, backend,
+                                                 tess.tolerance if adaptive else None,
+                                                 tess.max_level if adaptive else None)
+            st.topology_token = inputs.digest(plan_key)
+            state.plans_built[0] += 1
+        st.plan_key, st.faces_key = plan_key, faces_key
     if adaptive:
         st.deformer.tolerance = float(tess.tolerance)
         st.deformer.max_level = int(tess.max_level)
     return plan_key
+
+
+def follow(st, source, faces_key, plan_key, adaptive):
+    """Moves st's plan to the new pose of the same faces (an Armature, shape keys, a Wave
+    above: only positions, normals, UVs or weights changed; Deformer.follow) instead of
+    planning again. False where it cannot: no plan yet, other faces, materials, lattice
+    structure, level or backend, or a UV map or Vertex Group weighting added or removed.
+
+    Where the core keeps the output topology (no face crosses the lattice's knot planes
+    differently, no normal splits or joins) st.topology_token stays: the result mesh's
+    triangles, UV maps carried from other layers and vertex groups stay, and the write is
+    positions, normals, the render UVs and the rest positions only (write.write_result).
+    Otherwise the token is new and the write is a full one, as after a new plan. An adaptive
+    plan's output topology comes with each frame: its token is new with every pose."""
+    if st.deformer is None or st.faces_key != faces_key:
+        return False
+    try:
+        kept = st.deformer.follow(core.make_mesh(source))
+    except ValueError:   # faces the core reads as other ones, positions out of range
+        return False
+    except Exception:
+        st.deformer = st.plan_key = st.faces_key = None   # never half a pose
+        raise
+    state.plans_followed[0] += 1
+    old = st.plan_key
+    if kept and not adaptive:
+        state.plans_followed_kept[0] += 1
+        if st.output[0] is old:   # the output digest of the kept topology
+            st.output = (plan_key, st.output[1])
+    else:
+        st.result = None
+        st.outs = {}
+        st.topology_token = inputs.digest(plan_key)
+    return True
 
 
 def is_adaptive(st):

@@ -13,7 +13,8 @@ import uuid
 OWNER_KEY = "smooth_ffd_owner"          # result object -> source object's name_full (a string)
 MODIFIER_KEY = "smooth_ffd_modifier"    # result object -> modifier name
 UID_KEY = "smooth_ffd_uid"              # result object -> its modifier's in-memory state key
-TOPOLOGY_KEY = "smooth_ffd_topology"    # result mesh -> plan that built its topology
+TOPOLOGY_KEY = "smooth_ffd_topology"    # result mesh -> output topology it holds (plan token)
+POSE_KEY = "smooth_ffd_pose"            # result mesh -> plan (pose of the source) it was written for
 NORMALS_KEY = "smooth_ffd_normals"      # result mesh -> "exact" or "fast"
 EXTRAS_KEY = "smooth_ffd_extras"        # result mesh -> topology + carried UV maps / groups
 OUTPUT_KEY = "smooth_ffd_output"        # result mesh -> its triangles, faces, sharp edges
@@ -47,8 +48,10 @@ class ModifierState:
         self.source_stamp = None
         self.deformer = None
         self.plan_key = None
+        self.faces_key = None     # what a plan can follow across (plans.follow)
+        self.topology_token = None  # the plan's output topology: kept while follows keep it
         self.result = None        # the last core Result: its arrays are reused (out=)
-        self.scratch = (None, {})  # (plan_key, meshio.write_normals' per-plan facts, buffers)
+        self.scratch = (None, {})  # (topology_token, meshio.write_normals' per-topology facts)
         self.output = (None, None)  # (plan_key, digest of that plan's output topology)
         self.outs = {}            # layout -> the last result in it (out=; LAYOUT may change)
         self.status_base = None   # last "OK ..." status as (head, tail) (statusline.set_ok)
@@ -224,8 +227,14 @@ core_module = [None]
 # --- counters (tests and benchmarks read them) ------------------------------------------------
 # How many results were computed, and where.
 counters = {"computed": 0, "early": 0, "post": 0, "early_errors": 0}
-# How many plans were built (a rename must not build one).
+# How many plans were built (a rename must not build one), how many times a plan followed a
+# new pose of its source instead (plans.follow), and how many of those kept the output topology.
 plans_built = [0]
+plans_followed = [0]
+plans_followed_kept = [0]
+# How the result mesh was written: its topology rebuilt, or only its values (positions,
+# normals, ...) over the topology it had.
+mesh_writes = {"topology": 0, "values": 0}
 # How the core was asked: with normals (exact normals: render, Apply, Exact Normals, 4.5+) or
 # positions only (viewport on 3.4-4.4). Apart from `counters`, whose exact contents tests compare.
 deform_calls = {"normals": 0, "positions_only": 0}

@@ -8,7 +8,10 @@ from . import carry, compat, inputs, meshio, objects, state
 
 def result_matches(mesh, st):
     """False when something else (undo, the user) changed the result mesh behind our back."""
-    return mesh.get(state.TOPOLOGY_KEY) == (inputs.digest(st.plan_key) if st.plan_key else None)
+    if not st.plan_key:
+        return mesh.get(state.TOPOLOGY_KEY) is None
+    return mesh.get(state.TOPOLOGY_KEY) == st.topology_token and \
+        mesh.get(state.POSE_KEY) == inputs.digest(st.plan_key)
 
 
 def _materials(obj):
@@ -18,10 +21,16 @@ def _materials(obj):
 
 def write_result(obj, mod, ro, res, source, topology_token, exact, st, groups=True, fit_error=None):
     """Writes res into the result mesh; returns timings (ms) and the normals path used.
-    groups: carry the vertex groups (else the result has none). fit_error: per input face
-    (plans.fit_errors), written as the result's face attribute; None removes it."""
+    topology_token: st.topology_token, the output topology of st's plan (it stays while the
+    plan follows new poses of the source keeping that topology, plans.follow): where the mesh
+    holds it, the triangles, the UV maps carried from other layers and the vertex groups stay
+    and only values are written (positions, normals, render UVs, and the rest positions when
+    the pose changed). groups: carry the vertex groups (else the result has none). fit_error:
+    per input face (plans.fit_errors), written as the result's face attribute; None removes
+    it."""
     mesh = ro.data
     t0 = time.perf_counter()
+    pose = inputs.digest(st.plan_key)
     mode = "exact" if exact else "fast"
     same = (mesh.get(state.OUTPUT_KEY) == st.output[1] and mesh.get(state.TOPOLOGY_KEY) is not None
             and len(mesh.vertices) == len(res.positions)
@@ -42,6 +51,10 @@ def write_result(obj, mod, ro, res, source, topology_token, exact, st, groups=Tr
         # the old positions, so only while nothing but this modifier evaluates it (users:
         # a Smooth FFD below has it as its Stack Object, stack_input).
         meshio.write_positions(mesh, res)
+        if mesh.get(state.POSE_KEY) != pose:   # the plan followed a new pose of the source
+            meshio.write_rest_positions(mesh, res)
+            mesh[state.POSE_KEY] = pose
+        state.mesh_writes["values"] += 1
         po = objects.points_object(obj, mod, ro)
         meshio.write_vertices(po.data, res.positions)
         objects.set_points(obj, mod, po)
@@ -52,12 +65,15 @@ def write_result(obj, mod, ro, res, source, topology_token, exact, st, groups=Tr
     if rebuild:
         meshio.write_topology(mesh, res, source, _materials(obj))
         mesh[state.OUTPUT_KEY] = st.output[1]
+        state.mesh_writes["topology"] += 1
     else:
         meshio.write_positions(mesh, res)
-        if mesh.get(state.TOPOLOGY_KEY) != topology_token:
-            # Another plan with the same topology: the points on the input moved with it.
+        if mesh.get(state.TOPOLOGY_KEY) != topology_token or mesh.get(state.POSE_KEY) != pose:
+            # Another plan or pose with the same output: the points on the input moved with it.
             meshio.write_rest_positions(mesh, res)
+        state.mesh_writes["values"] += 1
     mesh[state.TOPOLOGY_KEY] = topology_token
+    mesh[state.POSE_KEY] = pose
     # UV maps and vertex groups: with a new topology, or when only they changed.
     carry_ms, carry_calls = 0.0, 0
     if rebuild or mesh.get(state.EXTRAS_KEY) != extras_token:
@@ -75,8 +91,8 @@ def write_result(obj, mod, ro, res, source, topology_token, exact, st, groups=Tr
         carry_ms = 1e3 * (time.perf_counter() - tc)
     t1 = time.perf_counter()
     if exact:
-        if st.scratch[0] is not st.plan_key:
-            st.scratch = (st.plan_key, {"splits": st.deformer.splits_normals})
+        if st.scratch[0] != topology_token:
+            st.scratch = (topology_token, {"splits": st.deformer.splits_normals})
         path = meshio.write_normals(mesh, res, st.scratch[1])
     else:
         # 3.4-4.4 viewport, live editing on 4.5+: Blender's own normals of the dense mesh.

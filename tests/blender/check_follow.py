@@ -1,0 +1,260 @@
+"""Plans that follow a moving source (plans.follow): an Armature or animated shape keys above
+Smooth FFD move its input every frame without changing its faces, so the add-on moves its
+plan to the new pose (smoothffd.Deformer.follow) instead of planning again.
+
+- a rigged character (blender_scenes/character.py: an Armature modifier first), its quads and
+  a triangulated copy, played over frames 1-6, and Suzanne (triangulated) with an animated
+  shape key value:
+  (a) one plan is built, on the first frame; every later frame follows it;
+  (b) on every frame the result mesh's positions equal those of the core's own Deformer,
+      built here on the first frame's posed input and made to follow the same poses, within
+      1e-6 of the lattice's size; where the input is triangles (so that a plan built afresh
+      triangulates it as the first one did) also the add-on's own result with its plan
+      dropped on that frame (a fresh plan);
+  (c) a pose changed slightly on the same frame (a bone turned by 1e-3 rad, a shape key value
+      by 1e-3) keeps the output topology: the result mesh's topology is not written again
+      (the write counters, `rebuilt`, its triangles) and its UV maps are not carried again,
+      only its positions and rest positions move, by what the core's following Deformer
+      gives; wherever a follow kept the topology
+      during playback the same holds.
+- the posed input the add-on reads equals the twin object's evaluated mesh (the same stack
+  without Smooth FFD), and the source mesh is never written.
+"""
+import os
+import sys
+
+import bpy  # first: the bpy module puts bmesh on sys.path
+import bmesh  # noqa: E402
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
+import sffd_testlib as T  # noqa: E402
+from sffd_testlib import smooth_ffd, core, latticeio, meshio, objects, pipeline, state  # noqa: E402
+
+sys.path.insert(0, os.path.join(T.ROOT, "blender_scenes"))
+import character as C  # noqa: E402
+
+LEVEL = 2
+TOL = 1e-6   # of the lattice's size: float32 rounding of positions around 1
+FRAMES = range(C.FRAMES[0], C.FRAMES[1] + 1)
+
+
+def evaluated(obj):
+    return obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+
+
+def triangulate(me):
+    bm = bmesh.new()
+    bm.from_mesh(me)
+    bmesh.ops.triangulate(bm, faces=bm.faces[:])
+    bm.to_mesh(me)
+    bm.free()
+
+
+def counters():
+    return dict(built=state.plans_built[0], followed=state.plans_followed[0],
+                kept=state.plans_followed_kept[0], topology=state.mesh_writes["topology"],
+                values=state.mesh_writes["values"])
+
+
+def delta(before):
+    now = counters()
+    return {k: now[k] - before[k] for k in now}
+
+
+class Reference:
+    """The core's Deformer on the twin's posed mesh (the stack above without Smooth FFD),
+    built on the first pose and following every later one: what the add-on's plan cache
+    must reproduce, computed without it."""
+
+    def __init__(self, a, twin, lat):
+        self.a, self.twin, self.lat = a, twin, lat
+        self.deformer = None
+
+    def source(self):
+        return meshio.SourceMesh(evaluated(self.twin), None, False, [])
+
+    def lattice(self):
+        dg = bpy.context.evaluated_depsgraph_get()
+        rest, pts, interp, _shape, _key, _weights = latticeio.read_lattice(self.lat, dg)
+        l2o = core.lattice_to_object(latticeio.world_matrix(self.a, dg),
+                                     latticeio.world_matrix(self.lat, dg))
+        return T.core_module().BlenderLattice(rest, pts, interpolation=interp,
+                                              lattice_to_object=l2o)
+
+    def frame(self):
+        """(positions, triangles, kept) of the current pose."""
+        src, lattice = self.source(), self.lattice()
+        kept = None
+        if self.deformer is None:
+            self.deformer = core.make_deformer(src, lattice, LEVEL, "cpu")
+        else:
+            kept = self.deformer.follow(core.make_mesh(src))
+        res = self.deformer.deform(lattice, normals=True, layout="corners")
+        return np.asarray(res.positions, np.float64), np.asarray(res.triangles), kept
+
+
+def result_mesh(a, mod):
+    return objects.result_object(a, mod, create=False).data
+
+
+def err_of(got, exp, size):
+    if got.shape != exp.shape:
+        return np.inf
+    return float(np.abs(got - exp).max()) / size
+
+
+def play(name, a, twin, lat, mod, fresh):
+    """Plays FRAMES; checks (a), (b) and the playback half of (c); returns the reference."""
+    sc = bpy.context.scene
+    size = T.lattice_size(a, lat)
+    ref = Reference(a, twin, lat)
+    src_before = T.positions(a.data).copy()
+    sc.frame_set(FRAMES[0])
+    T.update()
+    start = counters()
+    played = {}
+    last_tris = None
+    for i, f in enumerate(FRAMES):
+        before = counters()
+        if i:
+            sc.frame_set(f)
+        d = delta(before)
+        st = objects.state_of(a, mod)
+        twin_src = ref.source()
+        T.check(f"{name}: frame {f}: the add-on's input is the posed mesh",
+                st is not None and st.source is not None
+                and np.array_equal(st.source.positions, twin_src.positions)
+                and np.array_equal(st.source.corner_vertices, twin_src.corner_vertices),
+                "" if st is None or st.source is None else
+                f"{np.abs(st.source.positions - twin_src.positions).max():.1e}")
+        exp, exp_tris, ref_kept = ref.frame()
+        me = result_mesh(a, mod)
+        got, tris = T.positions(me).astype(np.float64), T.triangles(me)
+        err = err_of(got, exp, size)
+        status = smooth_ffd.status(mod)
+        T.check(f"{name}: frame {f}: the core's following Deformer's positions",
+                err <= TOL and status.startswith("OK") and np.array_equal(tris, exp_tris),
+                f"err {err:.1e} of the lattice size, {len(got)} vs {len(exp)} vertices, "
+                f"{status[:60]}")
+        if i:
+            T.check(f"{name}: frame {f}: followed, not planned",
+                    d["built"] == 0 and d["followed"] == 1 and d["kept"] == int(ref_kept),
+                    f"{d}, core's follow kept {ref_kept}")
+            timing = pipeline.last_timing(a, mod)
+            if d["kept"]:
+                T.check(f"{name}: frame {f}: topology kept, values written only",
+                        d["topology"] == 0 and d["values"] == 1 and not timing["rebuilt"]
+                        and timing["carry_ms"] == 0.0 and np.array_equal(tris, last_tris),
+                        f"{d}, rebuilt {timing['rebuilt']}, carry {timing['carry_ms']:.2f} ms")
+            else:
+                T.check(f"{name}: frame {f}: new topology written",
+                        d["topology"] == 1 or np.array_equal(tris, last_tris), str(d))
+        played[f] = got
+        last_tris = tris
+    d = delta(start)
+    T.check(f"{name}: one plan over frames {FRAMES[0]}-{FRAMES[-1]}",
+            state.plans_built[0] >= 1 and d["built"] == 0 and d["followed"] == len(FRAMES) - 1,
+            f"{d}")
+    print(f"{name}: {d['followed']} follows, {d['kept']} kept the topology, "
+          f"{d['topology']} topology writes, {d['values']} value writes")
+    if fresh:
+        for f in FRAMES:
+            sc.frame_set(f)
+            built = state.plans_built[0]
+            pipeline.forget(a, mod)
+            smooth_ffd.update(a, mod)   # as the viewport: not forced (that carries groups)
+            got = T.positions(result_mesh(a, mod)).astype(np.float64)
+            err = err_of(got, played[f], size)
+            T.check(f"{name}: frame {f}: a fresh plan gives the followed result",
+                    err <= TOL and state.plans_built[0] == built + 1,
+                    f"err {err:.1e} of the lattice size, {state.plans_built[0] - built} built")
+    T.check(f"{name}: the source mesh is not written",
+            np.array_equal(T.positions(a.data), src_before))
+    return ref
+
+
+def small_change(name, a, mod, ref, lat, change):
+    """(c): a slight pose change on the same frame keeps the output topology."""
+    size = T.lattice_size(a, lat)
+    me = result_mesh(a, mod)
+    tris0, pos0 = T.triangles(me), T.positions(me).copy()
+    rest0 = T.point_attribute(me, meshio.REST_ATTRIBUTE).copy()
+    before = counters()
+    change()
+    T.update()
+    d = delta(before)
+    exp, exp_tris, kept = ref.frame()
+    me = result_mesh(a, mod)
+    got, tris = T.positions(me).astype(np.float64), T.triangles(me)
+    rest = T.point_attribute(me, meshio.REST_ATTRIBUTE)
+    timing = pipeline.last_timing(a, mod)
+    moved = float(np.abs(got - pos0).max()) / size
+    err = err_of(got, exp, size)
+    T.check(f"{name}: slight change: the core keeps the topology", kept is True, str(kept))
+    T.check(f"{name}: slight change: followed, topology kept, no topology write",
+            d["built"] == 0 and d["followed"] == 1 and d["kept"] == 1 and d["topology"] == 0
+            and d["values"] >= 1 and not timing["rebuilt"] and timing["carry_ms"] == 0.0,
+            f"{d}, rebuilt {timing['rebuilt']}, carry {timing['carry_ms']:.2f} ms")
+    T.check(f"{name}: slight change: same triangles, positions moved as the core's",
+            np.array_equal(tris, tris0) and np.array_equal(tris, exp_tris) and moved > 1e-5
+            and err <= TOL, f"moved {moved:.1e}, err {err:.1e} of the lattice size")
+    T.check(f"{name}: slight change: rest positions moved with the pose",
+            float(np.abs(rest - rest0).max()) > 0.0)
+
+
+def test_armature(triangles):
+    T.clear()
+    name = "armature, " + ("triangles" if triangles else "quads")
+    rig = C.armature("rig")
+    a = C.character_object(1, "A", rig)
+    twin = C.character_object(1, "B", rig)
+    if triangles:
+        triangulate(a.data)
+        triangulate(twin.data)
+    lat = C.lattice_around([a])
+    mod = smooth_ffd.add_smooth_ffd(a, lat, viewport_level=LEVEL, backend="cpu")
+    ref = play(name, a, twin, lat, mod, fresh=triangles)
+
+    def turn():   # on the last frame, where play left both
+        rig.animation_data_clear()
+        rig.pose.bones["arm.L"].rotation_euler.y += 1e-3
+    small_change(name, a, mod, ref, lat, turn)
+
+
+def test_shape_keys():
+    T.clear()
+    a = T.make_mesh("suzanne", "A")
+    triangulate(a.data)
+    a.shape_key_add(name="Basis")
+    swell = a.shape_key_add(name="Swell")
+    co = T.positions(a.data)
+    swell.data.foreach_set("co", (co * 1.15 + [0.0, 0.0, 0.1]).astype(np.float32).ravel())
+    for f, v in ((FRAMES[0], 0.0), (FRAMES[-1], 1.0)):
+        swell.value = v
+        swell.keyframe_insert("value", frame=f)
+    twin = T.link(bpy.data.objects.new("B", a.data.copy()))
+    twin.location = a.location
+    T.check("shape keys: the twin has the animated key",
+            twin.data.shape_keys is not None and twin.data.shape_keys != a.data.shape_keys
+            and twin.data.shape_keys.animation_data is not None)
+    lat = C.lattice_around([a])
+    mod = smooth_ffd.add_smooth_ffd(a, lat, viewport_level=LEVEL, backend="cpu")
+    ref = play("shape keys", a, twin, lat, mod, fresh=True)
+
+    def nudge():
+        for obj in (a, twin):
+            obj.data.shape_keys.animation_data_clear()
+            obj.data.shape_keys.key_blocks["Swell"].value -= 1e-3   # at 1: the slider's top
+    small_change("shape keys", a, mod, ref, lat, nudge)
+
+
+def main():
+    T.setup()
+    T.run("armature, quads", test_armature, False)
+    T.run("armature, triangles", test_armature, True)
+    T.run("shape keys", test_shape_keys)
+    T.finish()
+
+
+main()

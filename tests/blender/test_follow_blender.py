@@ -1,0 +1,16 @@
+"""Runs check_follow.py (plans that follow a moving source: an Armature and animated shape
+keys above Smooth FFD) in each Blender, as tests/test_blender.py runs the other check_*.py
+scripts: the same Blenders (SFFD_TEST_BLENDERS), the same private user profile, the source
+tree or the installed zips."""
+import pytest
+
+from test_blender import RUNNERS, _run, _summary, blender_cmd, blender_env  # noqa: F401
+
+
+@pytest.mark.parametrize("runner", RUNNERS)
+def test_plans_follow_the_pose(runner, blender_env):  # noqa: F811
+    rc, out = _run(blender_cmd(runner, "check_follow.py"), extra_env=blender_env(runner))
+    assert rc == 0, f"{runner} check_follow.py failed (rc={rc}):\n{_summary(out)}\n--- tail ---\n{out[-3000:]}"
+    assert " passed, 0 failed" in out
+    # Every frame after the first followed the plan (no new one), on the three scenes.
+    assert out.count("5 follows") == 3, _summary(out)

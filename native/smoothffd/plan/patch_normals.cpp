@@ -1,6 +1,6 @@
 #include "smoothffd/plan/patch_normals.hpp"
 
-#include "smoothffd/core/cancel.hpp"
+#include "smoothffd/core/parallel.hpp"
 #include "smoothffd/plan/corner_normals.hpp"
 #include "smoothffd/plan/rest_surface.hpp"
 
@@ -12,35 +12,36 @@ PatchNormals patch_corner_normals(const std::vector<double>& X, const InputSurfa
   const std::vector<int>& tv = in.tv;
   const std::vector<double>& acn = in.adjust.corner;
   PatchNormals out{std::vector<double>(9 * (size_t)P), std::vector<double>(9 * (size_t)P)};
-  CancelPoller poller(256);
-  for (int p = 0; p < P; ++p) {
-    poller.tick();
-    int t = clip.patch_tri[p];
-    double Pt[9], Nt[9], At[9];
-    for (int k = 0; k < 3; ++k)
-      for (int i = 0; i < 3; ++i) {
-        Pt[3 * k + i] = X[3 * (size_t)tv[3 * t + k] + i];
-        Nt[3 * k + i] = shade[9 * (size_t)t + 3 * k + i];
-        At[3 * k + i] = acn[9 * (size_t)t + 3 * k + i];
-      }
-    for (int c = 0; c < 3; ++c) {
-      const double* b = &clip.patch_bary[9 * (size_t)p + 3 * c];
-      double rn[3], an[3];
-      for (int i = 0; i < 3; ++i) rn[i] = b[0] * Nt[i] + b[1] * Nt[3 + i] + b[2] * Nt[6 + i];
-      normalize_or(rn, Nt);
-      const int v = clip.patch_vertex[3 * p + c];
-      if (v < V) {
-        const int k = slot_of(tv, t, v);
-        for (int i = 0; i < 3; ++i) an[i] = At[3 * k + i];
-      } else {
-        pn_quadratic_normal(Pt, At, b, an);
-      }
-      for (int i = 0; i < 3; ++i) {
-        out.render[9 * (size_t)p + 3 * c + i] = rn[i];
-        out.adjust[9 * (size_t)p + 3 * c + i] = an[i];
+  // Each patch's own corners: in parallel, the same values.
+  parallel_for(P, default_threads(), [&](long long pb, long long pe) {
+    for (long long p = pb; p < pe; ++p) {
+      int t = clip.patch_tri[p];
+      double Pt[9], Nt[9], At[9];
+      for (int k = 0; k < 3; ++k)
+        for (int i = 0; i < 3; ++i) {
+          Pt[3 * k + i] = X[3 * (size_t)tv[3 * t + k] + i];
+          Nt[3 * k + i] = shade[9 * (size_t)t + 3 * k + i];
+          At[3 * k + i] = acn[9 * (size_t)t + 3 * k + i];
+        }
+      for (int c = 0; c < 3; ++c) {
+        const double* b = &clip.patch_bary[9 * (size_t)p + 3 * c];
+        double rn[3], an[3];
+        for (int i = 0; i < 3; ++i) rn[i] = b[0] * Nt[i] + b[1] * Nt[3 + i] + b[2] * Nt[6 + i];
+        normalize_or(rn, Nt);
+        const int v = clip.patch_vertex[3 * p + c];
+        if (v < V) {
+          const int k = slot_of(tv, t, v);
+          for (int i = 0; i < 3; ++i) an[i] = At[3 * k + i];
+        } else {
+          pn_quadratic_normal(Pt, At, b, an);
+        }
+        for (int i = 0; i < 3; ++i) {
+          out.render[9 * (size_t)p + 3 * c + i] = rn[i];
+          out.adjust[9 * (size_t)p + 3 * c + i] = an[i];
+        }
       }
     }
-  }
+  });
   return out;
 }
 

@@ -42,49 +42,55 @@ std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVer
     }
     plan.sample_weight[s] = (float)w;
   };
-  for (int v = 0; v < SV; ++v) put_sample(v, &moved[3 * (size_t)v], sub_weight[v]);
-  for (int e = 0; e < E; ++e) {
-    int a = plan.edge_vertex[2 * e], b = plan.edge_vertex[2 * e + 1];
-    for (int j = 0; j < ES; ++j) {
-      double t = edge_num[j] / double(N3), pos[3];
-      for (int i = 0; i < 3; ++i) pos[i] = (1 - t) * moved[3 * (size_t)a + i] + t * moved[3 * (size_t)b + i];
-      put_sample(SV + (long long)e * ES + j, pos, (1 - t) * sub_weight[a] + t * sub_weight[b]);
+  // Each sub-vertex, edge and patch writes its own samples: in parallel, the same values.
+  const int threads = default_threads();
+  parallel_for(SV, threads, [&](long long b, long long e) {
+    for (long long v = b; v < e; ++v) put_sample(v, &moved[3 * (size_t)v], sub_weight[v]);
+  });
+  parallel_for(E, threads, [&](long long eb, long long ee) {
+    for (long long e = eb; e < ee; ++e) {
+      int a = plan.edge_vertex[2 * e], b = plan.edge_vertex[2 * e + 1];
+      for (int j = 0; j < ES; ++j) {
+        double t = edge_num[j] / double(N3), pos[3];
+        for (int i = 0; i < 3; ++i) pos[i] = (1 - t) * moved[3 * (size_t)a + i] + t * moved[3 * (size_t)b + i];
+        put_sample(SV + e * ES + j, pos, (1 - t) * sub_weight[a] + t * sub_weight[b]);
+      }
     }
-  }
+  });
   std::vector<int> column_interior(K, -1);
   for (int k = 0, ord = 0; k < K; ++k) {
     const int* q = &fit.numerator[3 * k];
     if (q[0] > 0 && q[1] > 0 && q[2] > 0) column_interior[k] = ord++;
   }
   plan.patch_samples.resize((size_t)P * K);
-  CancelPoller poller(256);
-  for (int p = 0; p < P; ++p) {
-    poller.tick();
-    const int* cv = &plan.patch_vertex[3 * p];
-    for (int k = 0; k < K; ++k) {
-      const int* q = &fit.numerator[3 * k];
-      long long s;
-      int zeros = (q[0] == 0) + (q[1] == 0) + (q[2] == 0);
-      if (zeros == 2) {
-        s = cv[q[0] ? 0 : q[1] ? 1 : 2];
-      } else if (zeros == 1) {
-        int ek = q[2] == 0 ? 0 : q[0] == 0 ? 1 : 2;  // edge corner ek -> ek + 1
-        int along = q[(ek + 1) % 3];                  // numerator of the far corner
-        if (plan.patch_edge_reversed[3 * p + ek]) along = N3 - along;
-        s = SV + (long long)plan.patch_edge[3 * p + ek] * ES + edge_index(along);
-      } else {
-        s = SV + (long long)E * ES + (long long)p * IS + column_interior[k];
-        double b[3] = {q[0] / double(N3), q[1] / double(N3), q[2] / double(N3)}, pos[3], w = 0;
-        for (int i = 0; i < 3; ++i) {
-          pos[i] = 0;
-          for (int c = 0; c < 3; ++c) pos[i] += b[c] * moved[3 * (size_t)cv[c] + i];
+  parallel_for(P, threads, [&](long long pb, long long pe) {
+    for (long long p = pb; p < pe; ++p) {
+      const int* cv = &plan.patch_vertex[3 * p];
+      for (int k = 0; k < K; ++k) {
+        const int* q = &fit.numerator[3 * k];
+        long long s;
+        int zeros = (q[0] == 0) + (q[1] == 0) + (q[2] == 0);
+        if (zeros == 2) {
+          s = cv[q[0] ? 0 : q[1] ? 1 : 2];
+        } else if (zeros == 1) {
+          int ek = q[2] == 0 ? 0 : q[0] == 0 ? 1 : 2;  // edge corner ek -> ek + 1
+          int along = q[(ek + 1) % 3];                  // numerator of the far corner
+          if (plan.patch_edge_reversed[3 * p + ek]) along = N3 - along;
+          s = SV + (long long)plan.patch_edge[3 * p + ek] * ES + edge_index(along);
+        } else {
+          s = SV + (long long)E * ES + (long long)p * IS + column_interior[k];
+          double b[3] = {q[0] / double(N3), q[1] / double(N3), q[2] / double(N3)}, pos[3], w = 0;
+          for (int i = 0; i < 3; ++i) {
+            pos[i] = 0;
+            for (int c = 0; c < 3; ++c) pos[i] += b[c] * moved[3 * (size_t)cv[c] + i];
+          }
+          for (int c = 0; c < 3; ++c) w += b[c] * sub_weight[cv[c]];
+          put_sample(s, pos, w);
         }
-        for (int c = 0; c < 3; ++c) w += b[c] * sub_weight[cv[c]];
-        put_sample(s, pos, w);
+        plan.patch_samples[(size_t)p * K + k] = (int)s;
       }
-      plan.patch_samples[(size_t)p * K + k] = (int)s;
     }
-  }
+  });
   plan.edge_constraint.resize(2 * (size_t)E);
   for (int e = 0; e < E; ++e) {
     plan.edge_constraint[2 * e] = SV + e * ES + edge_index(n);

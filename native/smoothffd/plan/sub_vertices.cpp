@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-#include "smoothffd/core/cancel.hpp"
+#include "smoothffd/core/parallel.hpp"
 
 namespace sffd {
 
@@ -33,21 +33,22 @@ SubVertices place_sub_vertices(const InputMesh& mesh, const InputSurface& in, co
                                const ClipResult& clip) {
   const int V = (int)(mesh.positions.size() / 3), SV = clip.sub_vertices();
   SubVertices out{clip.flat, std::vector<double>(SV, 1.0)};
-  CancelPoller poller(256);
-  for (int v = 0; v < SV; ++v) {
-    poller.tick();
-    if (v < V) {
-      if (!mesh.vertex_weight.empty()) out.weight[v] = mesh.vertex_weight[v];
-      continue;
+  // Each sub-vertex on its own: in parallel, the same values.
+  parallel_for(SV, default_threads(), [&](long long vb, long long ve) {
+    for (long long v = vb; v < ve; ++v) {
+      if (v < V) {
+        if (!mesh.vertex_weight.empty()) out.weight[v] = mesh.vertex_weight[v];
+        continue;
+      }
+      int t = clip.origin_tri[v];
+      const double* b = &clip.origin_bary[3 * (size_t)v];
+      rest_surface_point(rest, mesh.positions, in.tv, in.edges, t, b, &out.position[3 * (size_t)v]);
+      if (!mesh.vertex_weight.empty()) {
+        out.weight[v] = 0;
+        for (int k = 0; k < 3; ++k) out.weight[v] += b[k] * mesh.vertex_weight[in.tv[3 * t + k]];
+      }
     }
-    int t = clip.origin_tri[v];
-    const double* b = &clip.origin_bary[3 * (size_t)v];
-    rest_surface_point(rest, mesh.positions, in.tv, in.edges, t, b, &out.position[3 * (size_t)v]);
-    if (!mesh.vertex_weight.empty()) {
-      out.weight[v] = 0;
-      for (int k = 0; k < 3; ++k) out.weight[v] += b[k] * mesh.vertex_weight[in.tv[3 * t + k]];
-    }
-  }
+  });
   return out;
 }
 

@@ -2,8 +2,20 @@
 against Armature + Lattice + Subdivision Surface at the same density, in the same run. Prints
 frames per second, asserts nothing.
 
-    blender -b --factory-startup --python blender_scenes/bench_playback.py [-- ROUNDS [SUBDIVISIONS]]
-    ~/.cache/smoothffd/venv-bpy-5.0/bin/python blender_scenes/bench_playback.py [ROUNDS [SUBDIVISIONS]]
+Smooth FFD runs as shipped (its plan follows each new pose, plans.follow) and, on a second
+object, with a new plan every frame (following turned off for that object only): what
+following saves.
+
+    blender -b --factory-startup --python blender_scenes/bench_playback.py [-- ROUNDS [SUBDIVISIONS [MODE [AMPLITUDE]]]]
+    ~/.cache/smoothffd/venv-bpy-5.0/bin/python blender_scenes/bench_playback.py [ROUNDS [SUBDIVISIONS [MODE [AMPLITUDE]]]]
+
+MODE "window" (default): the add-on runs as while a window plays the animation (live editing
+on: positions only on 4.5+, Blender's own normals as always on 3.4-4.4; no fit error bound),
+what an artist sees. "background": as a script or farm evaluates frames (exact normals on
+4.5+ and the fit error bound each frame, an estimate costing more than the frame itself).
+AMPLITUDE scales the rig's angles (default 1, the wave: its arms cross the lattice's knot
+planes differently on every frame, so each frame writes a new topology; 0.02, a slight idle
+motion: most frames keep the topology and write values only).
 
 The character (blender_scenes/character.py, SUBDIVISIONS=3: 5,760 quads) waves over frames
 1-6; a 4x4x4 B-spline lattice boxes it. Playback = scene.frame_set(f) for f = 1..6, then the
@@ -26,7 +38,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path[:0] = [os.path.join(ROOT, "addon"), os.path.join(ROOT, "python"), HERE]
 import smooth_ffd  # noqa: E402
-from smooth_ffd import pipeline, state  # noqa: E402
+from smooth_ffd import live, objects as sffd_objects, pipeline, plans, state  # noqa: E402
 import character as C  # noqa: E402
 
 
@@ -40,6 +52,8 @@ def argv():
 ARGS = argv()
 ROUNDS = int(ARGS[0]) if ARGS else 5
 SUBDIVISIONS = int(ARGS[1]) if len(ARGS) > 1 else 3
+MODE = ARGS[2] if len(ARGS) > 2 else "window"
+AMPLITUDE = float(ARGS[3]) if len(ARGS) > 3 else 1.0
 LEVEL = 3
 FRAMES = list(range(C.FRAMES[0], C.FRAMES[1] + 1))
 
@@ -68,22 +82,37 @@ def play(obj, sc):
     return out
 
 
+def replanning(obj, mod):
+    """Turns plan following off for one modifier (every new pose builds a new plan)."""
+    follow = plans.follow
+
+    def no_follow(st, *args):
+        return False if st is sffd_objects.state_of(obj, mod) else follow(st, *args)
+    plans.follow = no_follow
+
+
 def main():
     smooth_ffd.register()
+    if MODE == "window":   # as while a window plays (live.py)
+        state.LIVE = True
+        live.playing = lambda: True
     for o in list(bpy.data.objects):
         bpy.data.objects.remove(o)
     sc = bpy.context.scene
-    rig = C.armature("rig")
+    rig = C.armature("rig", AMPLITUDE)
     sffd = C.character_object(SUBDIVISIONS, "smooth_ffd", rig)
     lat = C.lattice_around([sffd])
     mod = smooth_ffd.add_smooth_ffd(sffd, lat, viewport_level=LEVEL, backend="cpu")
+    replan = C.character_object(SUBDIVISIONS, "smooth_ffd_replan", rig)
+    replan_mod = smooth_ffd.add_smooth_ffd(replan, lat, viewport_level=LEVEL, backend="cpu")
+    replanning(replan, replan_mod)
     subs = {}
     for level in (1, 2):
         obj = C.character_object(SUBDIVISIONS, f"subsurf{level}", rig)
         obj.modifiers.new("Lattice", 'LATTICE').object = lat
         obj.modifiers.new("Subsurf", 'SUBSURF').levels = level
         subs[level] = obj
-    objects = [sffd] + list(subs.values())
+    objects = [sffd, replan] + list(subs.values())
     counts = {}
     for obj in objects:
         show_only(obj, objects)
@@ -93,24 +122,32 @@ def main():
     closest = min(subs, key=lambda lv: abs(counts[f"subsurf{lv}"] - target))
     print(f"Blender {bpy.app.version_string}, {os.cpu_count()} CPUs; character "
           f"{len(sffd.data.polygons)} quads, armature 3 bones, lattice 4x4x4 B-spline, frames "
-          f"{FRAMES[0]}-{FRAMES[-1]}, {ROUNDS} rounds interleaved; load average "
+          f"{FRAMES[0]}-{FRAMES[-1]}, {ROUNDS} rounds interleaved, mode {MODE}, amplitude {AMPLITUDE:g}; load average "
           f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     times = {o.name: [] for o in objects}
-    reads0, plans0 = dict(state.stack_counters), state.plans_built[0]
+    reads0 = dict(state.stack_counters)
     timings = []
+    follow = [0] * 5
     for r in range(ROUNDS):
         for obj in objects:
             show_only(obj, objects)
+            was = (state.plans_built[0], state.plans_followed[0], state.plans_followed_kept[0],
+                   state.mesh_writes["topology"], state.mesh_writes["values"])
             ms = play(obj, sc)
             times[obj.name] += ms[1:]
             if obj is sffd:
                 timings.append(pipeline.last_timing(sffd, mod))
+                now = (state.plans_built[0], state.plans_followed[0],
+                       state.plans_followed_kept[0], state.mesh_writes["topology"],
+                       state.mesh_writes["values"])
+                follow = [f + n - w for f, n, w in zip(follow, now, was)]
     reads = {k: state.stack_counters[k] - reads0[k] for k in reads0}
     frames_sffd = ROUNDS * (len(FRAMES) - 1)
     print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}; "
           f"median ms per frame over {frames_sffd} frames each")
     print(f"{'':34s} {'triangles':>10s} {'ms/frame':>9s} {'fps':>6s}")
-    rows = [("Armature + Smooth FFD level 3", "smooth_ffd")] + \
+    rows = [("Armature + Smooth FFD level 3", "smooth_ffd"),
+            ("  the same, a new plan every frame", "smooth_ffd_replan")] + \
         [(f"Armature + Lattice + Subsurf {lv}" + (" (closest)" if lv == closest else ""),
           f"subsurf{lv}") for lv in subs]
     med = {}
@@ -126,9 +163,14 @@ def main():
           f"{split.get('deform_ms', 0):.1f} ms, write {split.get('write_ms', 0):.1f} ms "
           f"(mesh {split.get('mesh_write_ms', 0):.1f}, carry {split.get('carry_ms', 0):.1f}, "
           f"normals {split.get('normals_ms', 0):.1f}); stack readings {reads['reads']} for "
-          f"{frames_sffd + ROUNDS} frames shown, forced evaluations {reads['forced']}, deferred "
-          f"{reads['deferred']}, plans built {state.plans_built[0] - plans0}")
+          f"{2 * (frames_sffd + ROUNDS)} frames shown (both Smooth FFD objects), forced "
+          f"evaluations {reads['forced']}, deferred {reads['deferred']}")
+    print(f"Smooth FFD (following) over {frames_sffd + ROUNDS} frames: plans built {follow[0]}, "
+          f"followed {follow[1]} (topology kept {follow[2]}), result mesh written: topology "
+          f"{follow[3]}, values only {follow[4]}")
     m0, m1 = med[f"subsurf{closest}"], med["smooth_ffd"]
+    print(f"fps Smooth FFD following / a new plan every frame: "
+          f"{med['smooth_ffd_replan'] / m1:.2f}x")
     print(f"fps Smooth FFD / Lattice + Subsurf {closest}: {m0 / m1:.2f}x "
           f"({1e3 / m1:.1f} vs {1e3 / m0:.1f} fps; triangles {target} vs "
           f"{counts[f'subsurf{closest}']})")

@@ -172,8 +172,9 @@ def add_weights(obj):
             vg.add([int(i)], float(w[i]), 'REPLACE')
 
 
-def armature(name="rig"):
-    """spine (hips to chest) with arm.L and arm.R at the shoulders; keyframed on FRAMES."""
+def armature(name="rig", amplitude=1.0):
+    """spine (hips to chest) with arm.L and arm.R at the shoulders; keyframed on FRAMES, its
+    angles scaled by amplitude (1: a wave; 0.02: a slight idle motion)."""
     data = bpy.data.armatures.new(name)
     arm = _link(bpy.data.objects.new(name, data))
     prev = bpy.context.view_layer.objects.active
@@ -193,6 +194,7 @@ def armature(name="rig"):
     for b in arm.pose.bones:
         b.rotation_mode = 'XYZ'
     for frame, (sx, al, ar) in poses.items():
+        sx, al, ar = amplitude * sx, amplitude * al, amplitude * ar
         arm.pose.bones["spine"].rotation_euler = (sx, 0, 0.1 * sx)
         arm.pose.bones["arm.L"].rotation_euler = (0, al, 0)
         arm.pose.bones["arm.R"].rotation_euler = (0, ar, 0)

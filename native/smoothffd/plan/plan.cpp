@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -172,8 +173,9 @@ Plan build(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions&
                     previous->patch_vertex == plan.patch_vertex && previous->patch_triangle == plan.patch_triangle &&
                     previous->edge_flags == plan.edge_flags;
   if (kept) *kept = same;
-  CancelScope uncancelled([] { return false; });
+  std::optional<CancelScope> uncancelled;
   if (previous) {
+    uncancelled.emplace([] { return false; });
     if (gave_up) *gave_up = true;
     for (auto table : kOutputTables) (plan.*table).swap(previous->*table);
     plan.rest_positions.swap(previous->rest_positions);

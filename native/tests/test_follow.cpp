@@ -172,3 +172,38 @@ TEST(Follow, FramesEqualAFreshPlans) {
   EXPECT_EQ(a.pos, b.pos);
   EXPECT_EQ(a.nrm, b.nrm);
 }
+
+// Random polygon soups (repeated vertices, split and zero normals, UVs, weights) in random
+// lattices, followed through random moves of every size: each follow is build_plan_like's
+// plan, and a frame of it is finite.
+TEST(Follow, RandomMeshesAndMoves) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> U(-1, 1);
+  int kept = 0, rebuilt = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    const LatticeSpec s = random_lattice(rng);
+    const InputMesh m = random_mesh(rng, 20, 16);
+    const PlanOptions opt = level(1 + trial % 4);
+    Plan plan;
+    try {
+      plan = build_plan(m, s, opt);
+    } catch (const std::invalid_argument&) {
+      continue;  // refused input (e.g. only degenerate faces) has no plan to follow
+    }
+    for (int step = 0; step < 3; ++step) {
+      InputMesh moved = m;
+      const double amount = step == 0 ? 1e-7 : step == 1 ? 1e-3 : 0.1;
+      for (double& x : moved.positions) x += amount * U(rng);
+      const Plan before = plan;
+      const bool k = follow_plan(plan, moved, s, opt);
+      (k ? kept : rebuilt)++;
+      expect_same_plan(plan, build_plan_like(moved, s, opt, before));
+      if (k) EXPECT_EQ(plan.triangles, before.triangles);
+    }
+    // The followed plan evaluates as the plan build_plan_like makes (the same tables), finite.
+    const CpuOut out = run_cpu(std::make_shared<const Plan>(plan), zero_values(s));
+    for (float x : out.pos) ASSERT_TRUE(std::isfinite(x));
+  }
+  EXPECT_GT(kept, 10);
+  EXPECT_GT(rebuilt, 10);
+}

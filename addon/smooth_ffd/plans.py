@@ -1,6 +1,6 @@
 """The second and third steps of an update: the plan cache (one core Deformer per modifier,
-kept while the source mesh, the lattice's structure, the level and the backend stay) and the
-core's frame on it."""
+kept while the source mesh, the lattice's structure, the level and the backend stay, and
+moved to each new pose of the same faces: follow) and the core's frame on it."""
 import bpy
 import numpy as np
 
@@ -74,11 +74,12 @@ def follow(st, source, faces_key, plan_key, adaptive):
     structure, level or backend, or a UV map or Vertex Group weighting added or removed.
 
     Where the core keeps the output topology (no face crosses the lattice's knot planes
-    differently, no normal splits or joins) st.topology_token stays: the result mesh's
-    triangles, UV maps carried from other layers and vertex groups stay, and the write is
-    positions, normals, the render UVs and the rest positions only (write.write_result).
-    Otherwise the token is new and the write is a full one, as after a new plan. An adaptive
-    plan's output topology comes with each frame: its token is new with every pose."""
+    differently, no normal splits or joins) st.topology_token and st.output stay: the result
+    mesh keeps its triangles, carried UV maps and vertex groups, and the write is positions,
+    normals and rest positions only (write.write_result; UV maps and groups again only where
+    they changed). Otherwise the token is new: the output is compared again (pipeline) and
+    the mesh rebuilt where it differs, as after a new plan. An adaptive plan's output topology
+    comes with each frame: its token is new with every pose (not counted as kept)."""
     if st.deformer is None or st.faces_key != faces_key:
         return False
     try:

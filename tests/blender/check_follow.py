@@ -17,6 +17,8 @@ plan to the new pose (smoothffd.Deformer.follow) instead of planning again.
       only its positions and rest positions move, by what the core's following Deformer
       gives; wherever a follow kept the topology
       during playback the same holds.
+- a bake of the shape-key animation follows the plan too: no plan built, every baked frame
+  the played result;
 - the posed input the add-on reads equals the twin object's evaluated mesh (the same stack
   without Smooth FFD), and the source mesh is never written.
 """
@@ -171,7 +173,29 @@ def play(name, a, twin, lat, mod, fresh):
                     f"err {err:.1e} of the lattice size, {state.plans_built[0] - built} built")
     T.check(f"{name}: the source mesh is not written",
             np.array_equal(T.positions(a.data), src_before))
-    return ref
+    return ref, played
+
+
+def bake(name, a, mod, lat, played):
+    """A bake of FRAMES at the render level (= LEVEL here) follows the plan over its frames
+    too: no plan built, each baked frame the played result."""
+    sc = bpy.context.scene
+    size = T.lattice_size(a, lat)
+    before = counters()
+    smooth_ffd.bake_smooth_ffd(a, mod, FRAMES[0], FRAMES[-1])
+    d = delta(before)
+    T.check(f"{name}: bake follows the plan", d["built"] == 0 and d["followed"] >= len(FRAMES) - 1,
+            str(d))
+    for f in FRAMES:
+        sc.frame_set(f)
+        T.update()
+        err = err_of(T.positions(evaluated(a)).astype(np.float64), played[f], size)
+        status = smooth_ffd.status(mod)
+        T.check(f"{name}: baked frame {f} is the played result",
+                err <= TOL and status.startswith("Baked"),
+                f"err {err:.1e} of the lattice size, {status[:40]}")
+    smooth_ffd.clear_bake(a, mod)
+    T.update()
 
 
 def small_change(name, a, mod, ref, lat, change):
@@ -214,7 +238,7 @@ def test_armature(triangles):
         triangulate(twin.data)
     lat = C.lattice_around([a])
     mod = smooth_ffd.add_smooth_ffd(a, lat, viewport_level=LEVEL, backend="cpu")
-    ref = play(name, a, twin, lat, mod, fresh=triangles)
+    ref, _played = play(name, a, twin, lat, mod, fresh=triangles)
 
     def turn():   # on the last frame, where play left both
         rig.animation_data_clear()
@@ -239,8 +263,11 @@ def test_shape_keys():
             twin.data.shape_keys is not None and twin.data.shape_keys != a.data.shape_keys
             and twin.data.shape_keys.animation_data is not None)
     lat = C.lattice_around([a])
-    mod = smooth_ffd.add_smooth_ffd(a, lat, viewport_level=LEVEL, backend="cpu")
-    ref = play("shape keys", a, twin, lat, mod, fresh=True)
+    mod = smooth_ffd.add_smooth_ffd(a, lat, viewport_level=LEVEL, render_level=LEVEL,
+                                    backend="cpu")
+    ref, played = play("shape keys", a, twin, lat, mod, fresh=True)
+    bake("shape keys", a, mod, lat, played)
+    ref.frame()   # the bake left the scene on the last frame, where the reference is
 
     def nudge():
         for obj in (a, twin):

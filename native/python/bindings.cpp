@@ -648,12 +648,19 @@ PYBIND11_MODULE(_core, m) {
         "(AVX2 + FMA, chosen by CPUID) or the baseline 'x86-64-v2'; on 64-bit Arm 'armv8-a' "
         "(NEON, the only path); CpuEvaluator(..., isa=...) picks one");
   py::class_<CpuEvaluator, std::shared_ptr<CpuEvaluator>> cpu(m, "CpuEvaluator");
-  cpu.def(py::init([](std::shared_ptr<Plan> plan, int threads, const std::string& isa) {
-            return interruptible([&] { return std::make_shared<CpuEvaluator>(plan, threads, isa); });
+  py::class_<BufferPool, std::shared_ptr<BufferPool>>(
+      m, "BufferPool",
+      "Per-frame buffers handed from an evaluator to the next one given the same pool (a plan that "
+      "follows a moving input gets a new evaluator each frame): no fresh memory to fault in")
+      .def(py::init<>())
+      .def_property_readonly("bytes", &BufferPool::bytes, "memory kept for the next evaluator");
+  cpu.def(py::init([](std::shared_ptr<Plan> plan, int threads, const std::string& isa,
+                      std::shared_ptr<BufferPool> pool) {
+            return interruptible([&] { return std::make_shared<CpuEvaluator>(plan, threads, isa, pool); });
           }),
           // .none(false): None was a null plan and a segfault (found by fuzz_bindings.py)
           py::arg("plan").none(false), py::arg("threads") = 0, py::kw_only(), py::arg("isa") = "auto",
-          py::keep_alive<1, 2>())
+          py::arg("pool") = nullptr, py::keep_alive<1, 2>())
       .def_property_readonly("threads", &CpuEvaluator::threads)
       .def_property_readonly("isa", &CpuEvaluator::isa,
                              "per-frame code path: 'x86-64-v2' (baseline) or 'x86-64-v3' (AVX2 + FMA)")

@@ -189,6 +189,7 @@ class Deformer:
                              f"computes in (limit {_F32_LIMIT:g})")
         self.requested_device = device
         self._triangulation = None  # the first plan's, once the mesh follows a pose
+        self._pool = None  # the CPU evaluators' buffers, once the mesh follows a pose
         # The evaluators keep per-frame buffers, and native work runs without the GIL: calls
         # from several threads take turns instead of racing on those buffers.
         self._lock = threading.Lock()
@@ -223,7 +224,7 @@ class Deformer:
             except (RuntimeError, MemoryError) as exc:  # no memory for the plan, driver error
                 self._fall_back_to_cpu(exc)
         if self._evaluator is None:
-            self._evaluator = _core.CpuEvaluator(self.plan, self.threads)
+            self._evaluator = _core.CpuEvaluator(self.plan, self.threads, pool=self._pool)
 
     def follow(self, mesh):
         """Moves the planned mesh to a new pose without planning it again (an Armature, shape
@@ -256,6 +257,8 @@ class Deformer:
             if self._triangulation is None:
                 self._triangulation = self.plan.input_triangles()
             avail = _available_memory()
+            if self._pool is None:  # the next CPU evaluators take over their predecessor's buffers
+                self._pool = _core.BufferPool()
             self._evaluator = None  # the core refuses to change a plan an evaluator reads
             try:
                 kept = _core.follow_plan(self.plan, mesh.positions, mesh.corner_vertices,
@@ -282,7 +285,7 @@ class Deformer:
         warnings.warn(msg, RuntimeWarning, stacklevel=3)
         log.warning(msg)
         self.device, self.device_message = "cpu", f"CPU fallback: {exc}"
-        self._evaluator = _core.CpuEvaluator(self.plan, self.threads)
+        self._evaluator = _core.CpuEvaluator(self.plan, self.threads, pool=self._pool)
 
     def _choose_device(self):
         if self.requested_device == "cpu":

@@ -95,8 +95,9 @@ std::vector<std::string> cpu_isas() {
   return out;
 }
 
-CpuEvaluator::CpuEvaluator(std::shared_ptr<const Plan> plan, int threads, const std::string& isa)
-    : plan_(std::move(plan)), threads_(threads > 0 ? threads : default_threads()),
+CpuEvaluator::CpuEvaluator(std::shared_ptr<const Plan> plan, int threads, const std::string& isa,
+                           std::shared_ptr<BufferPool> pool)
+    : plan_(std::move(plan)), pool_(std::move(pool)), threads_(threads > 0 ? threads : default_threads()),
       kernels_(kernels_for(isa)),
       batches_(make_sample_batches(*plan_)),
       positions_batches_(positions_only_batches(*plan_)),
@@ -108,12 +109,24 @@ CpuEvaluator::CpuEvaluator(std::shared_ptr<const Plan> plan, int threads, const 
   const Plan& p = *plan_;
   for (size_t i = 0; i + 1 < p.centre_start.size(); ++i)
     centre_widest_ = std::max(centre_widest_, p.centre_start[i + 1] - p.centre_start[i]);
-  sample_value_.resize(3 * (size_t)p.samples);
-  sample_jacobian_.resize(9 * (size_t)p.samples);
-  end_normal_.resize(3 * (size_t)end_normals_.count());
-  edge_control_.resize(6 * (size_t)p.edges);
-  patch_control_.resize(30 * (size_t)p.patches);
-  patch_normal_.resize(30 * (size_t)p.patches);
+  auto buffer = [&](std::vector<float>& v, size_t n) {
+    if (pool_)
+      v = pool_->take(n);
+    else
+      v.resize(n);
+  };
+  buffer(sample_value_, 3 * (size_t)p.samples);
+  buffer(sample_jacobian_, 9 * (size_t)p.samples);
+  buffer(end_normal_, 3 * (size_t)end_normals_.count());
+  buffer(edge_control_, 6 * (size_t)p.edges);
+  buffer(patch_control_, 30 * (size_t)p.patches);
+  buffer(patch_normal_, 30 * (size_t)p.patches);
+}
+
+CpuEvaluator::~CpuEvaluator() {
+  if (!pool_) return;
+  for (auto* v : {&sample_value_, &sample_jacobian_, &end_normal_, &edge_control_, &patch_control_, &patch_normal_})
+    pool_->give(std::move(*v));
 }
 
 // Stage 4a: the sub-vertices' positions are their samples (exact images of the input and clip

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "smoothffd/core/buffer_pool.hpp"
 #include "smoothffd/eval/evaluator.hpp"
 #include "smoothffd/eval/cpu_fitting.hpp"
 #include "smoothffd/eval/cpu_frame.hpp"
@@ -26,7 +27,11 @@ class CpuEvaluator : public Evaluator {
   // isa: "auto" (cpu_isa()), or the name of one of the per-frame code paths (core/isa.hpp):
   // "x86-64-v2" (the baseline of shipped builds), "x86-64-v3" (AVX2 + FMA). Throws
   // std::invalid_argument for a path this build lacks or this CPU cannot run.
-  CpuEvaluator(std::shared_ptr<const Plan> plan, int threads = 0, const std::string& isa = "auto");
+  // pool: where this evaluator takes its per-frame buffers from and gives them back to when it
+  // is destroyed (core/buffer_pool.hpp), or null: its own.
+  CpuEvaluator(std::shared_ptr<const Plan> plan, int threads = 0, const std::string& isa = "auto",
+               std::shared_ptr<BufferPool> pool = nullptr);
+  ~CpuEvaluator() override;
   std::string name() const override { return "cpu"; }
   std::string isa() const;  // the path this evaluator runs
   const Plan& plan() const override { return *plan_; }
@@ -51,6 +56,7 @@ class CpuEvaluator : public Evaluator {
   StageTimes run(const float* D, float* positions, float* corner_normals, float* render_normals, Frame frame);
   void tessellate_positions(const PlanView& pv, const FrameView& fv, const ChangedRuns* runs);
   std::shared_ptr<const Plan> plan_;
+  std::shared_ptr<BufferPool> pool_;
   int threads_;
   const CpuFrameKernels* kernels_;  // the per-ISA per-frame loops
   SampleBatches batches_;  // sampling: samples grouped by lattice box, kLanes at a time

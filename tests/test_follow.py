@@ -204,3 +204,44 @@ def test_pooled_evaluators_give_the_same_frames():
     pooled.evaluate(moved, positions=pos_a, corner_normals=nrm_a, incremental=True)
     plain.evaluate(moved, positions=pos_b, corner_normals=nrm_b, incremental=True)
     assert np.array_equal(pos_a, pos_b) and np.array_equal(nrm_a, nrm_b)
+
+
+def _blender_lattice_around(mesh, lattice_to_object, seed=3):
+    """A 4x4x4 Blender lattice (B-spline interpolation) whose rest box spans the mesh's box, its
+    points displaced; placed by lattice_to_object after the fit."""
+    import reference as ref
+    lo, hi = mesh.positions.min(axis=0), mesh.positions.max(axis=0)
+    rest = ref.blender_rest((4, 4, 4))
+    fit = np.eye(4)
+    fit[:3, :3] = np.diag(1.1 * (hi - lo))
+    fit[:3, 3] = 0.5 * (lo + hi)
+    rng = np.random.default_rng(seed)
+    pts = rest + rng.uniform(-0.06, 0.06, rest.shape)
+    return smoothffd.BlenderLattice(rest, pts, "BSPLINE", lattice_to_object @ fit)
+
+
+def test_a_lattice_that_moves_with_a_bone_is_followed():
+    # The lattice turns and slides with a bone while the mesh stays: its placement changes every
+    # frame (a new structure key), its basis does not.
+    import reference as ref
+    mesh = real.load("suzanne")
+    size = float(np.linalg.norm(np.ptp(mesh.positions, axis=0)))
+    d = smoothffd.Deformer(mesh, _blender_lattice_around(mesh, np.eye(4)), level=LEVEL, device="cpu")
+    d.deform()
+    for f in range(1, 4):
+        place = ref.affine(ref.rotation([0, 0, 1], 0.05 * f), [0.01 * f * size, 0, 0])
+        lat = _blender_lattice_around(mesh, place)
+        assert lat.structure_key() != d.lattice.structure_key()
+        reference = _plan_like(mesh, lat, d.plan)
+        d.follow(lattice=lat)
+        assert d.lattice is lat
+        res = d.deform()
+        pos, nrm = _evaluate(reference, _control_values_f32(lat))
+        assert np.array_equal(res.positions, pos) and np.array_equal(res.corner_normals, nrm)
+        # The input vertices: Blender's own lattice formula (tests/reference.py) at them.
+        want = ref.blender_lattice_reference(lat.rest_points, lat.points, lat.interpolation,
+                                             lat.lattice_to_object, lat.strength, mesh.positions)
+        assert np.abs(res.positions[:mesh.vertex_count] - want).max() / size < 2e-6
+    other = smoothffd.BlenderLattice(ref.blender_rest((5, 4, 4)), ref.blender_rest((5, 4, 4)), "BSPLINE")
+    with pytest.raises(ValueError, match="basis"):
+        d.follow(lattice=other)

@@ -226,12 +226,17 @@ class Deformer:
         if self._evaluator is None:
             self._evaluator = _core.CpuEvaluator(self.plan, self.threads, pool=self._pool)
 
-    def follow(self, mesh):
+    def follow(self, mesh=None, lattice=None):
         """Moves the planned mesh to a new pose without planning it again (an Armature, shape
-        keys or a Wave above the lattice: docs/algorithm.md, "A plan that follows the pose").
+        keys or a Wave above the lattice, or a lattice that moves with a bone: docs/algorithm.md,
+        "A plan that follows the pose").
 
         mesh: the planned mesh's faces (equal corner_vertices and face_offsets) with new
-        positions, and its own corner normals, UVs and vertex weights. The triangles of the
+        positions, and its own corner normals, UVs and vertex weights; None: the mesh as it is.
+        lattice: None, or a lattice that differs from the current one at most in its values and
+        in where it lies (an equal `basis_key()`: the same kind, degrees or interpolation,
+        counts, knots and point weighting; another box or lattice_to_object), which becomes the
+        current lattice. The triangles of the
         first plan are kept (not those of the new shape), everything that depends on positions
         is computed again, and the output topology is kept while no face crosses the lattice's
         knot planes differently and no normal splits or joins. Returns True when it was kept:
@@ -240,8 +245,19 @@ class Deformer:
         next results equal those of a Deformer planned afresh for `mesh` with this plan's
         triangles (`Plan.input_triangles()`) within float rounding.
         """
+        if mesh is None:
+            mesh = self.mesh
         if not isinstance(mesh, Mesh):
             raise TypeError(f"mesh: expected smoothffd.Mesh, got {type(mesh).__name__}")
+        if lattice is None:
+            lattice = self.lattice
+        if not isinstance(lattice, _Lattice):
+            raise TypeError("lattice: expected smoothffd.BSplineLattice or smoothffd.BlenderLattice, "
+                            f"got {type(lattice).__name__}")
+        if lattice.basis_key() != self.lattice.basis_key():
+            raise ValueError("lattice: its kind, degrees, counts, knots or point weighting differ from "
+                             "the planned lattice's (follow moves a lattice, it does not change its basis); "
+                             "pass it to deform, which plans it")
         old = self.mesh
         if mesh.vertex_count != old.vertex_count or not (
                 np.array_equal(mesh.face_offsets, old.face_offsets)
@@ -263,12 +279,13 @@ class Deformer:
             try:
                 kept = _core.follow_plan(self.plan, mesh.positions, mesh.corner_vertices,
                                          mesh.face_offsets, mesh.corner_normals, mesh.uvs,
-                                         mesh.vertex_weights, self.lattice._spec,
+                                         mesh.vertex_weights, lattice._spec,
                                          memory_limit=float(avail) if avail else 0.0,
                                          centre_rows=False)
             finally:
                 self._make_evaluator()
             self.mesh = mesh
+            self.lattice, self._key = lattice, lattice.structure_key()
             if kept and self._static is not None:
                 self._static.update(uvs=self.plan.uvs(), rest_positions=self.plan.rest_positions())
                 self._freeze()

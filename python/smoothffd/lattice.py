@@ -78,6 +78,12 @@ class _Lattice:
         """Hashable; lattices with equal keys share a plan (only their values differ)."""
         return self._key
 
+    def basis_key(self):
+        """Hashable; lattices with equal keys differ at most in their values and in where they
+        lie (object_to_param: a lattice that moves, turns or scales with a bone): a plan follows
+        from one to the other (Deformer.follow)."""
+        return self._basis_key
+
 
 def _finite(name, what, compute):
     """compute() in float64 without overflow warnings; a ValueError naming `name` where the
@@ -161,8 +167,8 @@ class BSplineLattice(_Lattice):
                                lambda: cp - self._greville)
         self._spec = _core.LatticeSpec.bspline(list(self.degree), kv, list(counts), self._map)
         self._check_pieces("control_points")
-        self._key = ("bspline", self.degree, counts, tuple(tuple(k) for k in kv),
-                     tuple(bmin), tuple(bmax))
+        self._basis_key = ("bspline", self.degree, counts, tuple(tuple(k) for k in kv))
+        self._key = self._basis_key + (tuple(bmin), tuple(bmax))
 
     def _greville_points(self, kv, counts, lo, hi, bmin, bmax):
         axes = []
@@ -270,6 +276,7 @@ class BlenderLattice(_Lattice):
         weighted = self.point_weights is not None
         self._spec = _core.LatticeSpec.blender(list(interp), list(counts), self._map, point_weights=weighted)
         self._check_pieces("points")
+        self._basis_key = ("blender", interp, counts, weighted)
         self._key = ("blender", interp, counts, tuple(self._map.ravel()), weighted)
 
     def _weights(self, point_weights):

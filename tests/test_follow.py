@@ -129,6 +129,9 @@ def test_other_faces_are_refused_and_the_deformer_keeps_working():
     with pytest.raises(TypeError):
         d.follow(mesh.positions)
     assert np.array_equal(d.deform().positions, before)
+    with pytest.raises(TypeError):
+        _core.follow_plan(None, mesh.positions, mesh.corner_vertices, mesh.face_offsets,
+                          mesh.corner_normals, mesh.uvs, mesh.vertex_weights, lattice._spec)
     # The core refuses to change a plan an evaluator still reads.
     ev = _core.CpuEvaluator(d.plan, 0)
     with pytest.raises(RuntimeError, match="evaluator"):

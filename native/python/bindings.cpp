@@ -577,7 +577,7 @@ PYBIND11_MODULE(_core, m) {
         opt.centre_rows = centre_rows;
         return interruptible([&] { return follow_plan(*plan, mesh, spec, opt); });
       },
-      py::arg("plan"), py::arg("positions"), py::arg("corner_vertices"), py::arg("face_offsets"),
+      py::arg("plan").none(false), py::arg("positions"), py::arg("corner_vertices"), py::arg("face_offsets"),
       py::arg("corner_normals"), py::arg("uvs"), py::arg("vertex_weights"), py::arg("lattice"),
       py::arg("sharp_angle_degrees") = 1.0, py::arg("memory_limit") = 0.0, py::arg("centre_rows") = true,
       "Replaces plan by the plan of the same input in a new pose (build_plan with the plan's own "

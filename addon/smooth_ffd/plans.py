@@ -49,8 +49,9 @@ def ensure_plan(st, source, lattice, level, backend, tess=None):
     plan_key = (source.key, structure, mode, backend)
     if st.deformer is None or st.plan_key != plan_key:
         faces_key = (source.topology_key, inputs.digest(source.material_index),
-                     source.uvs is None, source.weights is None, structure, mode, backend)
-        if not follow(st, source, faces_key, plan_key, adaptive):
+                     source.uvs is None, source.weights is None, lattice.basis_key(), mode,
+                     backend)
+        if not follow(st, source, lattice, faces_key, plan_key, adaptive):
             st.deformer = st.result = None
             st.outs = {}
             long = len(source.corner_vertices) * (1 if adaptive else level * level) > 2_000_000
@@ -67,11 +68,13 @@ def ensure_plan(st, source, lattice, level, backend, tess=None):
     return plan_key
 
 
-def follow(st, source, faces_key, plan_key, adaptive):
+def follow(st, source, lattice, faces_key, plan_key, adaptive):
     """Moves st's plan to the new pose of the same faces (an Armature, shape keys, a Wave
-    above: only positions, normals, UVs or weights changed; Deformer.follow) instead of
-    planning again. False where it cannot: no plan yet, other faces, materials, lattice
-    structure, level or backend, or a UV map or Vertex Group weighting added or removed.
+    above: only positions, normals, UVs or weights changed) and to where the lattice now lies
+    relative to the object (a lattice parented to a bone: the same basis, another placement),
+    Deformer.follow, instead of planning again. False where it cannot: no plan yet, other
+    faces or materials, another lattice basis (kind, interpolation, resolution, point
+    weighting), level or backend, or a UV map or Vertex Group weighting added or removed.
 
     Where the core keeps the output topology (no face crosses the lattice's knot planes
     differently, no normal splits or joins) st.topology_token and st.output stay: the result
@@ -83,7 +86,7 @@ def follow(st, source, faces_key, plan_key, adaptive):
     if st.deformer is None or st.faces_key != faces_key:
         return False
     try:
-        kept = st.deformer.follow(core.make_mesh(source))
+        kept = st.deformer.follow(core.make_mesh(source), lattice=lattice)
     except ValueError:   # faces the core reads as other ones, positions out of range
         return False
     except Exception:

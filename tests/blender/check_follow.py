@@ -17,6 +17,8 @@ plan to the new pose (smoothffd.Deformer.follow) instead of planning again.
       only its positions and rest positions move, by what the core's following Deformer
       gives; wherever a follow kept the topology
       during playback the same holds.
+- Suzanne (triangulated) in a lattice that moves and turns over the frames (as one parented
+  to a bone): the plan follows the lattice's placement, (a) and (b) as above;
 - a bake of the shape-key animation follows the plan too: no plan built, every baked frame
   the played result;
 - the posed input the add-on reads equals the twin object's evaluated mesh (the same stack
@@ -91,7 +93,7 @@ class Reference:
         if self.deformer is None:
             self.deformer = core.make_deformer(src, lattice, LEVEL, "cpu")
         else:
-            kept = self.deformer.follow(core.make_mesh(src))
+            kept = self.deformer.follow(core.make_mesh(src), lattice=lattice)
         res = self.deformer.deform(lattice, normals=True, layout="corners")
         return np.asarray(res.positions, np.float64), np.asarray(res.triangles), kept
 
@@ -276,11 +278,30 @@ def test_shape_keys():
     small_change("shape keys", a, mod, ref, lat, nudge)
 
 
+def test_moving_lattice():
+    """The lattice moves and turns (as one parented to a bone), the object's mesh stays: the
+    plan follows the lattice's new placement (the same basis)."""
+    T.clear()
+    a = T.make_mesh("suzanne", "A")
+    triangulate(a.data)
+    twin = T.link(bpy.data.objects.new("B", a.data.copy()))
+    lat = C.lattice_around([a])
+    for f, dx, rz in ((FRAMES[0], 0.0, 0.0), (FRAMES[-1], 0.08, 0.12)):
+        lat.location.x += dx
+        lat.rotation_euler.z = rz
+        lat.keyframe_insert("location", frame=f)
+        lat.keyframe_insert("rotation_euler", frame=f)
+        lat.location.x -= dx
+    mod = smooth_ffd.add_smooth_ffd(a, lat, viewport_level=LEVEL, backend="cpu")
+    play("moving lattice", a, twin, lat, mod, fresh=True)
+
+
 def main():
     T.setup()
     T.run("armature, quads", test_armature, False)
     T.run("armature, triangles", test_armature, True)
     T.run("shape keys", test_shape_keys)
+    T.run("moving lattice", test_moving_lattice)
     T.finish()
 
 

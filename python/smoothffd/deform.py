@@ -152,6 +152,20 @@ def _control_values_f32(lat):
     return np.ascontiguousarray(values, dtype=np.float32)
 
 
+def _check_inputs(mesh, lattice):
+    """The mesh and lattice a Deformer plans or follows: their types, and positions within the
+    float32 range the core computes in."""
+    if not isinstance(mesh, Mesh):
+        raise TypeError(f"mesh: expected smoothffd.Mesh, got {type(mesh).__name__}")
+    if not isinstance(lattice, _Lattice):
+        raise TypeError("lattice: expected smoothffd.BSplineLattice or smoothffd.BlenderLattice, "
+                        f"got {type(lattice).__name__}")
+    big = float(np.abs(mesh.positions).max(initial=0.0))
+    if not big <= _F32_LIMIT:
+        raise ValueError(f"mesh: positions up to {big:.3g} exceed the float32 range the core "
+                         f"computes in (limit {_F32_LIMIT:g})")
+
+
 class Deformer:
     """Plans a mesh for a lattice structure once; `deform` then only pushes control values.
 
@@ -168,11 +182,7 @@ class Deformer:
 
     def __init__(self, mesh, lattice, level=10, device="auto", threads=0, tolerance=None,
                  max_level=MAX_LEVEL):
-        if not isinstance(mesh, Mesh):
-            raise TypeError(f"mesh: expected smoothffd.Mesh, got {type(mesh).__name__}")
-        if not isinstance(lattice, _Lattice):
-            raise TypeError("lattice: expected smoothffd.BSplineLattice or smoothffd.BlenderLattice, "
-                            f"got {type(lattice).__name__}")
+        _check_inputs(mesh, lattice)
         self.level = positive_int(level, "level", 1, MAX_LEVEL)
         if device not in DEVICES:
             raise ValueError(f"device: expected one of {DEVICES}, got {device!r}")
@@ -183,10 +193,6 @@ class Deformer:
             self.level = 1  # the plan's uniform tables are not used
         self.max_level = max_level
         self.mesh = mesh
-        big = float(np.abs(mesh.positions).max(initial=0.0))
-        if not big <= _F32_LIMIT:
-            raise ValueError(f"mesh: positions up to {big:.3g} exceed the float32 range the core "
-                             f"computes in (limit {_F32_LIMIT:g})")
         self.requested_device = device
         self._triangulation = None  # the first plan's, once the mesh follows a pose
         self._pool = None  # the CPU evaluators' buffers, once the mesh follows a pose
@@ -245,15 +251,9 @@ class Deformer:
         next results equal those of a Deformer planned afresh for `mesh` with this plan's
         triangles (`Plan.input_triangles()`) within float rounding.
         """
-        if mesh is None:
-            mesh = self.mesh
-        if not isinstance(mesh, Mesh):
-            raise TypeError(f"mesh: expected smoothffd.Mesh, got {type(mesh).__name__}")
-        if lattice is None:
-            lattice = self.lattice
-        if not isinstance(lattice, _Lattice):
-            raise TypeError("lattice: expected smoothffd.BSplineLattice or smoothffd.BlenderLattice, "
-                            f"got {type(lattice).__name__}")
+        mesh = self.mesh if mesh is None else mesh
+        lattice = self.lattice if lattice is None else lattice
+        _check_inputs(mesh, lattice)
         if lattice.basis_key() != self.lattice.basis_key():
             raise ValueError("lattice: its kind, degrees, counts, knots or point weighting differ from "
                              "the planned lattice's (follow moves a lattice, it does not change its basis); "
@@ -264,10 +264,6 @@ class Deformer:
                 and np.array_equal(mesh.corner_vertices, old.corner_vertices)):
             raise ValueError("mesh: its faces differ from the planned mesh's (follow moves the same "
                              "faces to a new pose); plan it with a new Deformer")
-        big = float(np.abs(mesh.positions).max(initial=0.0))
-        if not big <= _F32_LIMIT:
-            raise ValueError(f"mesh: positions up to {big:.3g} exceed the float32 range the core "
-                             f"computes in (limit {_F32_LIMIT:g})")
         with self._lock:
             t0 = time.perf_counter()
             if self._triangulation is None:

@@ -153,3 +153,39 @@ def uv_sphere(segments=32, rings=16):
     last, base = len(V) - 1, 1 + (rings - 2) * segments
     F += [[base + j, last, base + (j + 1) % segments] for j in range(segments)]
     return V, np.array(F)
+
+
+def read_glb(path):
+    """The first mesh primitive of a binary glTF file (.glb) as a smoothffd.Mesh: its
+    triangles as the file lists them (non-indexed primitives give one vertex per corner, as
+    exporters write flat-shaded models: a triangle soup). Only what the tests' assets use:
+    float32 VEC3 positions, optional unsigned indices, mode 4 (triangles)."""
+    import json
+    import struct
+    with open(path, "rb") as f:
+        data = f.read()
+    magic, version, _length = struct.unpack_from("<4sII", data, 0)
+    assert magic == b"glTF" and version == 2, (magic, version)
+    json_len, json_type = struct.unpack_from("<I4s", data, 12)
+    assert json_type == b"JSON"
+    doc = json.loads(data[20:20 + json_len])
+    bin_at = 20 + json_len + 8
+    assert struct.unpack_from("<4s", data, bin_at - 4)[0] == b"BIN\0"
+
+    def accessor(i):
+        acc = doc["accessors"][i]
+        view = doc["bufferViews"][acc["bufferView"]]
+        dtype = {5126: np.float32, 5125: np.uint32, 5123: np.uint16, 5121: np.uint8}[acc["componentType"]]
+        width = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}[acc["type"]]
+        assert view.get("byteStride", 0) in (0, width * np.dtype(dtype).itemsize)
+        at = bin_at + view.get("byteOffset", 0) + acc.get("byteOffset", 0)
+        return np.frombuffer(data, dtype, acc["count"] * width, at).reshape(acc["count"], width)
+
+    prim = doc["meshes"][0]["primitives"][0]
+    assert prim.get("mode", 4) == 4
+    positions = accessor(prim["attributes"]["POSITION"]).astype(np.float64)
+    if "indices" in prim:
+        triangles = accessor(prim["indices"]).astype(np.int64).reshape(-1, 3)
+    else:
+        triangles = np.arange(len(positions)).reshape(-1, 3)
+    return smoothffd.Mesh(positions, triangles)

@@ -19,6 +19,13 @@ plan to the new pose (smoothffd.Deformer.follow) instead of planning again.
       during playback the same holds.
 - Suzanne (triangulated) in a lattice that moves and turns over the frames (as one parented
   to a bone): the plan follows the lattice's placement, (a) and (b) as above;
+- Suzanne (triangulated) under a Wave modifier and a Displace modifier with a keyframed
+  strength, both above Smooth FFD: other vertex-moving modifiers take the same path, (a) and
+  (b) as above;
+- an imported rigged character: the fox of tests/data/real/fox.glb through Blender's own glTF
+  importer (its skinned mesh, a triangle soup, under the imported armature playing the
+  file's Walk action), Smooth FFD added below its Armature modifier as the operator places
+  it: (a) and (b) as above;
 - a bake of the shape-key animation follows the plan too: no plan built, every baked frame
   the played result;
 - the posed input the add-on reads equals the twin object's evaluated mesh (the same stack
@@ -296,12 +303,75 @@ def test_moving_lattice():
     play("moving lattice", a, twin, lat, mod, fresh=True)
 
 
+def test_wave_and_displace():
+    """A Wave (moving with time) and a Displace (no texture: every vertex along its normal by
+    a keyframed strength) above Smooth FFD: the faces stay, the plan follows."""
+    T.clear()
+    a = T.make_mesh("suzanne", "A")
+    triangulate(a.data)
+    wave = a.modifiers.new("Wave", 'WAVE')
+    wave.height, wave.width, wave.speed = 0.06, 0.6, 0.1
+    disp = a.modifiers.new("Displace", 'DISPLACE')
+    for f, v in ((FRAMES[0], 0.0), (FRAMES[-1], 0.2)):
+        disp.strength = v
+        disp.keyframe_insert("strength", frame=f)
+    twin = T.link(a.copy())   # the same stack and animation, without Smooth FFD
+    twin.data = a.data.copy()
+    T.check("wave and displace: the twin has both modifiers, the strength animated",
+            [m.type for m in twin.modifiers] == ['WAVE', 'DISPLACE']
+            and twin.animation_data is not None and twin.animation_data.action is not None)
+    lat = C.lattice_around([a])
+    mod = smooth_ffd.add_smooth_ffd(a, lat, viewport_level=LEVEL, backend="cpu")
+    T.check("wave and displace: Smooth FFD below them",
+            [m.type for m in a.modifiers][:2] == ['WAVE', 'DISPLACE'] and a.modifiers[-1] == mod)
+    play("wave and displace", a, twin, lat, mod, fresh=True)
+
+
+FOX = os.path.join(T.ROOT, "tests", "data", "real", "fox.glb")
+
+
+def test_imported_rig():
+    """The fox as Blender's glTF importer brings it: a skinned mesh (576 triangles sharing no
+    vertex) parented to an armature, with the file's three actions; the Walk action plays."""
+    T.clear()
+    # Debian's Blender 3.4.1 glTF importer asks numpy for np.bool, which numpy 1.24 removed.
+    if not hasattr(np, "bool"):
+        np.bool = bool
+    known = set(bpy.data.objects)
+    bpy.ops.import_scene.gltf(filepath=FOX)
+    new = [o for o in bpy.data.objects if o not in known]
+    fox = next(o for o in new if o.type == 'MESH' and any(m.type == 'ARMATURE' for m in o.modifiers))
+    rig = fox.modifiers[[m.type for m in fox.modifiers].index('ARMATURE')].object
+    walk = next(act for act in bpy.data.actions if act.name.startswith("Walk"))
+    for track in list(rig.animation_data.nla_tracks):
+        rig.animation_data.nla_tracks.remove(track)
+    rig.animation_data.action = walk
+    twin = fox.copy()
+    twin.data = fox.data.copy()
+    for coll in fox.users_collection:
+        coll.objects.link(twin)
+    lat = C.lattice_around([fox])
+    mod = smooth_ffd.add_smooth_ffd(fox, lat, viewport_level=LEVEL, backend="cpu")
+    bpy.context.scene.frame_set(FRAMES[0])
+    p0 = T.positions(evaluated(twin)).copy()
+    bpy.context.scene.frame_set(FRAMES[-1])
+    moved = float(np.abs(T.positions(evaluated(twin)) - p0).max()) / T.lattice_size(fox, lat)
+    T.check("imported rig: a skinned triangle soup that walks, Smooth FFD below the Armature",
+            len(fox.data.polygons) == 576 and len(fox.data.vertices) == 1728
+            and fox.modifiers[-1] == mod and moved > 1e-2,
+            f"{len(fox.data.polygons)} faces, {len(fox.data.vertices)} vertices, moved {moved:.1e} "
+            f"of the lattice size, modifiers {[m.type for m in fox.modifiers]}")
+    play("imported rig", fox, twin, lat, mod, fresh=True)
+
+
 def main():
     T.setup()
     T.run("armature, quads", test_armature, False)
     T.run("armature, triangles", test_armature, True)
     T.run("shape keys", test_shape_keys)
     T.run("moving lattice", test_moving_lattice)
+    T.run("wave and displace", test_wave_and_displace)
+    T.run("imported rig", test_imported_rig)
     T.finish()
 
 

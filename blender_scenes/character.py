@@ -222,13 +222,14 @@ def rigged_character(subdivisions=2, name="character", location=(0.0, 0.0, 0.0))
 
 
 def lattice_around(objects, shape=(4, 4, 4), margin=0.08, jitter=0.12, seed=3,
-                   interp='KEY_BSPLINE', name="lat"):
-    """A lattice object boxing the objects' evaluated geometry (world space) over FRAMES, its
-    points jittered (an edited lattice)."""
+                   interp='KEY_BSPLINE', name="lat", frames=FRAMES):
+    """A lattice object boxing the objects' evaluated geometry (world space) over `frames`
+    (first, last) with `margin` on each side, its points jittered by up to `jitter` of their
+    spacing (an edited lattice)."""
     sc = bpy.context.scene
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
     keep = sc.frame_current
-    for f in range(FRAMES[0], FRAMES[1] + 1):
+    for f in range(frames[0], frames[1] + 1):
         sc.frame_set(f)
         dg = bpy.context.evaluated_depsgraph_get()
         for o in objects:
@@ -241,12 +242,16 @@ def lattice_around(objects, shape=(4, 4, 4), margin=0.08, jitter=0.12, seed=3,
     sc.frame_set(keep)
     size = (hi - lo) * (1 + 2 * margin)
     lt = bpy.data.lattices.new(name)
+    # Linked before it is resized: a lattice with an object spreads its points over the unit
+    # box, [-0.5, 0.5]^3, as one added in the viewport (resized without an object, they would
+    # be one unit apart, and the lattice (n-1) times the objects' box: no knot plane inside).
+    lat = _link(bpy.data.objects.new(name, lt))
     lt.points_u, lt.points_v, lt.points_w = shape
     lt.interpolation_type_u = lt.interpolation_type_v = lt.interpolation_type_w = interp
-    lat = _link(bpy.data.objects.new(name, lt))
     lat.location = (lo + hi) / 2
     lat.scale = size
     rng = np.random.default_rng(seed)
+    spacing = 1.0 / np.maximum(np.array(shape) - 1, 1)   # jitter: a fraction of the spacing
     for p in lt.points:
-        p.co_deform = np.array(p.co) + rng.uniform(-jitter, jitter, 3)
+        p.co_deform = np.array(p.co) + rng.uniform(-jitter, jitter, 3) * spacing
     return lat

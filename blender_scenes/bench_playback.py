@@ -6,8 +6,13 @@ Smooth FFD runs as shipped (its plan follows each new pose, plans.follow) and, o
 object, with a new plan every frame (following turned off for that object only): what
 following saves.
 
-    blender -b --factory-startup --python blender_scenes/bench_playback.py [-- ROUNDS [SUBDIVISIONS [MODE [AMPLITUDE]]]]
-    ~/.cache/smoothffd/venv-bpy-5.0/bin/python blender_scenes/bench_playback.py [ROUNDS [SUBDIVISIONS [MODE [AMPLITUDE]]]]
+    blender -b --factory-startup --python blender_scenes/bench_playback.py [-- ROUNDS [CHARACTER [MODE [AMPLITUDE]]]]
+    ~/.cache/smoothffd/venv-bpy-5.0/bin/python blender_scenes/bench_playback.py [ROUNDS [CHARACTER [MODE [AMPLITUDE]]]]
+
+CHARACTER: a number, the docs' character at that many subdivisions (default 3), or the path of
+a rigged glTF or FBX file (e.g. tests/data/real/fox.glb), imported with Blender's own importer
+at its defaults, as a user would: its first skinned mesh plays its Walk action (else its
+active one) over the action's frames, Smooth FFD below its Armature modifier.
 
 MODE "window" (default): the add-on runs as while a window plays the animation (live editing
 on: positions only on 4.5+, Blender's own normals as always on 3.4-4.4; no fit error bound),
@@ -17,8 +22,8 @@ AMPLITUDE scales the rig's angles (default 1, the wave: its arms cross the latti
 planes differently on every frame, so each frame writes a new topology; 0.02, a slight idle
 motion: most frames keep the topology and write values only).
 
-The character (blender_scenes/character.py, SUBDIVISIONS=3: 5,760 quads) waves over frames
-1-6; a 4x4x4 B-spline lattice boxes it. Playback = scene.frame_set(f) for f = 1..6, then the
+The docs' character (blender_scenes/character.py, 3 subdivisions: 5,760 quads) waves over
+frames 1-6; a 4x4x4 B-spline lattice boxes it (an imported one too, over its action's frames). Playback = scene.frame_set(f) for f = 1..6, then the
 evaluated mesh read (Blender 4.x/5.x evaluate a final Subdivision Surface when the mesh is
 first accessed, so that counts for both stacks). The two stacks run on two objects, one shown
 (hide_viewport) at a time, interleaved round by round so that both see the same machine load;
@@ -51,11 +56,67 @@ def argv():
 
 ARGS = argv()
 ROUNDS = int(ARGS[0]) if ARGS else 5
-SUBDIVISIONS = int(ARGS[1]) if len(ARGS) > 1 else 3
+CHARACTER = ARGS[1] if len(ARGS) > 1 else "3"
 MODE = ARGS[2] if len(ARGS) > 2 else "window"
 AMPLITUDE = float(ARGS[3]) if len(ARGS) > 3 else 1.0
 LEVEL = 3
 FRAMES = list(range(C.FRAMES[0], C.FRAMES[1] + 1))
+
+
+def docs_character():
+    """(make(name) -> a new rigged copy, description) for the docs' character."""
+    subdivisions = int(CHARACTER)
+    rig = C.armature("rig", AMPLITUDE)
+
+    def make(name):
+        return C.character_object(subdivisions, name, rig)
+    return make, lambda obj: f"the docs' character, {len(obj.data.polygons)} quads, armature 3 bones"
+
+
+def imported_character(path):
+    """(make, description) for a rigged file through Blender's importer (its defaults); sets
+    FRAMES to its Walk action's frames (else its active action's)."""
+    global FRAMES
+    if not hasattr(np, "bool"):   # Debian's Blender 3.4.1 glTF importer and numpy >= 1.24
+        np.bool = bool
+    ext = os.path.splitext(path)[1].lower()
+    if ext in (".glb", ".gltf"):
+        bpy.ops.import_scene.gltf(filepath=path)
+    elif ext == ".fbx":
+        bpy.ops.import_scene.fbx(filepath=path)
+    else:
+        sys.exit(f"bench_playback: {path}: not a .glb, .gltf or .fbx file")
+    skinned = [o for o in bpy.data.objects if o.type == 'MESH'
+               and any(m.type == 'ARMATURE' and m.object for m in o.modifiers)]
+    if not skinned:
+        sys.exit(f"bench_playback: {path}: no mesh with an Armature modifier")
+    first = skinned[0]
+    rig = next(m.object for m in first.modifiers if m.type == 'ARMATURE')
+    ad = rig.animation_data
+    act = next((a for a in bpy.data.actions if a.name.lower().startswith("walk")),
+               ad.action if ad else None)
+    if act is None:
+        sys.exit(f"bench_playback: {path}: the armature has no action to play")
+    for track in list(ad.nla_tracks):
+        ad.nla_tracks.remove(track)
+    ad.action = act
+    lo, hi = act.frame_range
+    FRAMES = list(range(int(lo), int(hi) + 1))
+    for o in skinned:   # the imported objects stay hidden; copies of the first one play
+        o.hide_viewport = True
+
+    def make(name):
+        obj = first.copy()
+        obj.data = first.data.copy()
+        obj.name = name
+        obj.hide_viewport = False
+        for coll in first.users_collection:
+            coll.objects.link(obj)
+        return obj
+    bones = len(rig.data.bones)
+    return make, lambda obj: (f"{os.path.basename(path)} imported, {len(obj.data.polygons)} faces "
+                              f"({len(obj.data.vertices)} vertices), armature {bones} bones, "
+                              f"action {act.name}")
 
 
 def triangles(obj):
@@ -99,16 +160,19 @@ def main():
     for o in list(bpy.data.objects):
         bpy.data.objects.remove(o)
     sc = bpy.context.scene
-    rig = C.armature("rig", AMPLITUDE)
-    sffd = C.character_object(SUBDIVISIONS, "smooth_ffd", rig)
-    lat = C.lattice_around([sffd])
+    if CHARACTER.isdigit():
+        make, describe = docs_character()
+    else:
+        make, describe = imported_character(os.path.abspath(CHARACTER))
+    sffd = make("smooth_ffd")
+    lat = C.lattice_around([sffd], frames=(FRAMES[0], FRAMES[-1]))
     mod = smooth_ffd.add_smooth_ffd(sffd, lat, viewport_level=LEVEL, backend="cpu")
-    replan = C.character_object(SUBDIVISIONS, "smooth_ffd_replan", rig)
+    replan = make("smooth_ffd_replan")
     replan_mod = smooth_ffd.add_smooth_ffd(replan, lat, viewport_level=LEVEL, backend="cpu")
     replanning(replan, replan_mod)
     subs = {}
     for level in (1, 2):
-        obj = C.character_object(SUBDIVISIONS, f"subsurf{level}", rig)
+        obj = make(f"subsurf{level}")
         obj.modifiers.new("Lattice", 'LATTICE').object = lat
         obj.modifiers.new("Subsurf", 'SUBSURF').levels = level
         subs[level] = obj
@@ -120,8 +184,7 @@ def main():
         counts[obj.name] = triangles(obj)
     target = counts["smooth_ffd"]
     closest = min(subs, key=lambda lv: abs(counts[f"subsurf{lv}"] - target))
-    print(f"Blender {bpy.app.version_string}, {os.cpu_count()} CPUs; character "
-          f"{len(sffd.data.polygons)} quads, armature 3 bones, lattice 4x4x4 B-spline, frames "
+    print(f"Blender {bpy.app.version_string}, {os.cpu_count()} CPUs; {describe(sffd)}, lattice 4x4x4 B-spline, frames "
           f"{FRAMES[0]}-{FRAMES[-1]}, {ROUNDS} rounds interleaved, mode {MODE}, amplitude {AMPLITUDE:g}; load average "
           f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     times = {o.name: [] for o in objects}

@@ -17,20 +17,27 @@ def triangle_loops(triangles):
 
 
 def edge_flags(mesh_edges, flagged_pairs, num_vertices):
-    """(E,) bool: which of the mesh's edges (E, 2) appear in flagged_pairs (K, 2), any order."""
-    e = np.sort(np.asarray(mesh_edges, dtype=np.int64).reshape(-1, 2), axis=1)
+    """(E,) bool: which of the mesh's edges (E, 2) appear in flagged_pairs (K, 2), any order.
+
+    Only an edge whose two ends are both ends of some flagged pair can be one, so those few
+    candidates are matched (sorted keys), not every edge: a per-frame write of a dense result
+    sorts nothing of its size."""
+    e = np.asarray(mesh_edges).reshape(-1, 2)
     out = np.zeros(len(e), dtype=bool)
     if len(e) == 0 or flagged_pairs is None or len(flagged_pairs) == 0:
         return out
     f = np.sort(np.asarray(flagged_pairs, dtype=np.int64).reshape(-1, 2), axis=1)
     n = np.int64(num_vertices)
-    ekey = e[:, 0] * n + e[:, 1]
-    fkey = f[:, 0] * n + f[:, 1]
-    order = np.argsort(ekey)
-    pos = np.searchsorted(ekey, fkey, sorter=order)
-    pos = np.clip(pos, 0, len(e) - 1)
-    hit = ekey[order[pos]] == fkey
-    out[order[pos[hit]]] = True
+    end = np.zeros(int(n), dtype=bool)
+    end[f.ravel()] = True
+    cand = np.flatnonzero(end[e[:, 0]] & end[e[:, 1]])
+    if len(cand) == 0:
+        return out
+    c = np.sort(e[cand].astype(np.int64), axis=1)
+    ckey = c[:, 0] * n + c[:, 1]
+    fkey = np.unique(f[:, 0] * n + f[:, 1])
+    pos = np.clip(np.searchsorted(fkey, ckey), 0, len(fkey) - 1)
+    out[cand[fkey[pos] == ckey]] = True
     return out
 
 

@@ -16,6 +16,27 @@ def test_edge_flags(result_arrays):
     assert not result_arrays.edge_flags(edges, np.zeros((0, 2)), 6).any()
 
 
+def test_edge_flags_match_a_set_of_pairs(result_arrays):
+    """Random meshes' edges and flagged pairs (some not edges, some repeated, either order),
+    against a plain set lookup; the edges as Blender gives them (int32, any order)."""
+    rng = np.random.default_rng(5)
+    for trial in range(20):
+        n = int(rng.integers(3, 400))
+        tri = rng.integers(0, n, size=(int(rng.integers(1, 600)), 3))
+        e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+        e = e[e[:, 0] != e[:, 1]]
+        e = np.unique(np.sort(e, axis=1), axis=0)
+        flip = rng.random(len(e)) < 0.5
+        e[flip] = e[flip][:, ::-1]
+        e = e[rng.permutation(len(e))].astype(np.int32)
+        picked = e[rng.random(len(e)) < rng.random()]
+        extra = rng.integers(0, n, size=(int(rng.integers(0, 30)), 2))
+        pairs = np.concatenate([picked, picked[: len(picked) // 3, ::-1], extra])
+        want = {tuple(sorted(p)) for p in pairs.tolist()}
+        expect = [tuple(sorted(x)) in want for x in e.tolist()]
+        assert result_arrays.edge_flags(e, pairs, n).tolist() == expect, trial
+
+
 def test_interpolate_group_membership_and_exactness(result_arrays):
     weight = np.array([0.3, 0.7, 0.0, 0.3, 1.0], np.float32)
     member = np.array([True, True, False, True, True])

@@ -135,7 +135,8 @@ def write_topology(mesh, res, source, materials):
     compat.set_corner_verts(mesh, loops)
     compat.set_loop_starts(mesh, starts, totals)
     face_index = np.asarray(res.face_index, dtype=np.int64)
-    compat.set_material_index(mesh, source.material_index[face_index])
+    if source.material_index.any():   # the cleared mesh's new faces have index 0
+        compat.set_material_index(mesh, source.material_index[face_index])
     mesh.update(calc_edges=True)
     # Which source face each output triangle came from: for tools, tests and debugging.
     attr = mesh.attributes.new(SOURCE_FACE_ATTRIBUTE, 'INT', 'FACE')
@@ -145,11 +146,14 @@ def write_topology(mesh, res, source, materials):
     write_rest_positions(mesh, res)
     # UV maps and vertex groups: carry.py, after this.
     compat.set_all_faces_smooth(mesh)
-    flags = result_arrays.edge_flags(compat.get_edges(mesh), res.sharp_edges, n)
-    compat.set_sharp_edges(mesh, flags)
+    sharp = res.sharp_edges is not None and len(res.sharp_edges) > 0
+    if sharp:   # else nothing to mark: the cleared mesh's new edges are all smooth
+        flags = result_arrays.edge_flags(compat.get_edges(mesh), res.sharp_edges, n)
+        compat.set_sharp_edges(mesh, flags)
+        sharp = bool(flags.any())
     # 3.4-4.0: auto smooth makes Blender compute split normals for the whole dense mesh on
     # every evaluation; only needed with sharp edges (custom normals turn it on themselves).
-    compat.enable_split_normals(mesh, bool(flags.any()))
+    compat.enable_split_normals(mesh, sharp)
 
 
 def write_fit_error(mesh, res, face_error):

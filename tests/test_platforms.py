@@ -44,6 +44,9 @@ DIST = ROOT / "dist"
 CACHE = Path(os.environ.get("SMOOTHFFD_CACHE") or os.path.expanduser("~/.cache/smoothffd"))
 INSTALLED = os.environ.get("SMOOTHFFD_TEST_INSTALLED") == "1"
 WINE = "/usr/lib/wine/wine64"
+# One Wine prefix and one arm64 root serve every test here: under pytest-xdist (the test
+# command's -n) they run one after another on one worker.
+pytestmark = pytest.mark.xdist_group("platforms")
 # The core's suites that run on every platform (the cp313 wheel runs the same set natively).
 CORE_SUITES = ["test_deform_basics.py", "test_lattices.py", "test_cli.py", "test_sphere_and_sharp.py"]
 

@@ -18,9 +18,10 @@ MODE "window" (default): the add-on runs as while a window plays the animation (
 on: positions only on 4.5+, Blender's own normals as always on 3.4-4.4; no fit error bound),
 what an artist sees. "background": as a script or farm evaluates frames (exact normals on
 4.5+ and the fit error bound each frame, an estimate costing more than the frame itself).
-AMPLITUDE scales the rig's angles (default 1, the wave: its arms cross the lattice's knot
-planes differently on every frame, so each frame writes a new topology; 0.02, a slight idle
-motion: most frames keep the topology and write values only).
+AMPLITUDE scales the docs' character's angles (default 1, the wave: its arms swing up to 0.7
+rad; 0.02, a slight idle motion). The last lines say how many follows kept the output
+topology (values written only) and how many wrote a new one (some face crossing the
+lattice's knot planes differently than on the frame before).
 
 The docs' character (blender_scenes/character.py, 3 subdivisions: 5,760 quads) waves over
 frames 1-6; a 4x4x4 B-spline lattice boxes it (an imported one too, over its action's frames). Playback = scene.frame_set(f) for f = 1..6, then the

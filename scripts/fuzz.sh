@@ -23,17 +23,31 @@ command -v "$CXX" >/dev/null || { echo "fuzz.sh: $CXX not found (apt-get install
 FLAGS=(-std=c++17 -O2 -gline-tables-only -fsanitize=fuzzer-no-link,address,undefined
        -fno-sanitize-recover=all -Inative -I/usr/include/eigen3)
 objs=()
-# The core's sources: not those of the CUDA library (cuda/) nor _core's proxy of it (cuda_proxy/).
+# The core's sources: not those of the CUDA library (cuda/) nor _core's proxy of it (cuda_proxy/),
+# compiled as many at a time as the machine has cores.
+JOBS=$(nproc 2>/dev/null || echo 2)
+running=0 failed=0
 for src in $(ls native/smoothffd/*/*.cpp | grep -v -e "^native/smoothffd/cuda/" -e "^native/smoothffd/cuda_proxy/") \
            native/fuzz/fuzz_plan.cpp; do
   o="$OUT/obj/$(echo "${src%.cpp}" | tr / _).o"
+  objs+=("$o")
   # Rebuild when the source or any core header is newer than the object.
   if [ ! -f "$o" ] || [ "$src" -nt "$o" ] || [ -n "$(find native/smoothffd -name '*.hpp' -newer "$o" | head -1)" ]; then
     echo "fuzz.sh: compiling $src"
-    "$CXX" "${FLAGS[@]}" -c "$src" -o "$o"
+    rm -f "$o"   # a failed compile leaves no object that looks current
+    "$CXX" "${FLAGS[@]}" -c "$src" -o "$o" &
+    running=$((running + 1))
+    if [ "$running" -ge "$JOBS" ]; then
+      wait -n || failed=1
+      running=$((running - 1))
+    fi
   fi
-  objs+=("$o")
 done
+while [ "$running" -gt 0 ]; do
+  wait -n || failed=1
+  running=$((running - 1))
+done
+[ "$failed" = 0 ] || { echo "fuzz.sh: compiling the fuzz build failed (above)"; exit 1; }
 "$CXX" -fsanitize=fuzzer,address,undefined "${objs[@]}" -o "$OUT/fuzz_plan" -lpthread
 echo "== fuzz_plan: ${SECS}s"
 rc=0

@@ -75,45 +75,19 @@ def docs_character():
 
 
 def imported_character(path):
-    """(make, description) for a rigged file through Blender's importer (its defaults); sets
-    FRAMES to its Walk action's frames (else its active action's)."""
+    """(make, describe) for a rigged file through Blender's importer (character.import_rigged);
+    sets FRAMES to the frames of the action it plays."""
     global FRAMES
-    if not hasattr(np, "bool"):   # Debian's Blender 3.4.1 glTF importer and numpy >= 1.24
-        np.bool = bool
-    ext = os.path.splitext(path)[1].lower()
-    if ext in (".glb", ".gltf"):
-        bpy.ops.import_scene.gltf(filepath=path)
-    elif ext == ".fbx":
-        bpy.ops.import_scene.fbx(filepath=path)
-    else:
-        sys.exit(f"bench_playback: {path}: not a .glb, .gltf or .fbx file")
-    skinned = [o for o in bpy.data.objects if o.type == 'MESH'
-               and any(m.type == 'ARMATURE' and m.object for m in o.modifiers)]
-    if not skinned:
-        sys.exit(f"bench_playback: {path}: no mesh with an Armature modifier")
-    first = skinned[0]
-    rig = next(m.object for m in first.modifiers if m.type == 'ARMATURE')
-    ad = rig.animation_data
-    act = next((a for a in bpy.data.actions if a.name.lower().startswith("walk")),
-               ad.action if ad else None)
-    if act is None:
-        sys.exit(f"bench_playback: {path}: the armature has no action to play")
-    for track in list(ad.nla_tracks):
-        ad.nla_tracks.remove(track)
-    ad.action = act
+    try:
+        first, rig, act = C.import_rigged(path)
+    except ValueError as exc:
+        sys.exit(f"bench_playback: {exc}")
     lo, hi = act.frame_range
     FRAMES = list(range(int(lo), int(hi) + 1))
-    for o in skinned:   # the imported objects stay hidden; copies of the first one play
-        o.hide_viewport = True
+    first.hide_viewport = True   # the imported object stays hidden; copies of it play
 
     def make(name):
-        obj = first.copy()
-        obj.data = first.data.copy()
-        obj.name = name
-        obj.hide_viewport = False
-        for coll in first.users_collection:
-            coll.objects.link(obj)
-        return obj
+        return C.rigged_copy(first, name)
     bones = len(rig.data.bones)
     return make, lambda obj: (f"{os.path.basename(path)} imported, {len(obj.data.polygons)} faces "
                               f"({len(obj.data.vertices)} vertices), armature {bones} bones, "

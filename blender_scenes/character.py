@@ -13,6 +13,7 @@ from the legs'), a belt of edges around the waist is marked sharp, and a cylindr
 from 0 to 1 across the shoulder, "spine" takes the rest.
 """
 import math
+import os
 
 import bpy  # first: the bpy module puts bmesh on sys.path
 import bmesh  # noqa: E402
@@ -255,3 +256,46 @@ def lattice_around(objects, shape=(4, 4, 4), margin=0.08, jitter=0.12, seed=3,
     for p in lt.points:
         p.co_deform = np.array(p.co) + rng.uniform(-jitter, jitter, 3) * spacing
     return lat
+
+
+def import_rigged(path):
+    """A rigged file (.glb, .gltf, .fbx) through Blender's own importer at its defaults, as a
+    user brings one: (its first mesh with an Armature modifier, that armature, the action it
+    now plays). The armature plays its Walk action when it has one (else its active action),
+    with its NLA tracks removed so that nothing else moves it."""
+    if not hasattr(np, "bool"):   # Debian's Blender 3.4.1 glTF importer and numpy >= 1.24
+        np.bool = bool
+    ext = os.path.splitext(path)[1].lower()
+    if ext in (".glb", ".gltf"):
+        bpy.ops.import_scene.gltf(filepath=path)
+    elif ext == ".fbx":
+        bpy.ops.import_scene.fbx(filepath=path)
+    else:
+        raise ValueError(f"{path}: not a .glb, .gltf or .fbx file")
+    skinned = [o for o in bpy.data.objects if o.type == 'MESH'
+               and any(m.type == 'ARMATURE' and m.object for m in o.modifiers)]
+    if not skinned:
+        raise ValueError(f"{path}: no mesh with an Armature modifier")
+    obj = skinned[0]
+    rig = next(m.object for m in obj.modifiers if m.type == 'ARMATURE')
+    ad = rig.animation_data
+    act = next((a for a in bpy.data.actions if a.name.lower().startswith("walk")),
+               ad.action if ad else None)
+    if act is None:
+        raise ValueError(f"{path}: the armature has no action to play")
+    for track in list(ad.nla_tracks):
+        ad.nla_tracks.remove(track)
+    ad.action = act
+    return obj, rig, act
+
+
+def rigged_copy(obj, name):
+    """A copy of a rigged object (its own mesh, the same modifiers, parent and armature), shown
+    and in the same collections."""
+    new = obj.copy()
+    new.data = obj.data.copy()
+    new.name = name
+    new.hide_viewport = False
+    for coll in obj.users_collection:
+        coll.objects.link(new)
+    return new

@@ -370,22 +370,8 @@ def test_imported_rig():
     """The fox as Blender's glTF importer brings it: a skinned mesh (576 triangles sharing no
     vertex) parented to an armature, with the file's three actions; the Walk action plays."""
     T.clear()
-    # Debian's Blender 3.4.1 glTF importer asks numpy for np.bool, which numpy 1.24 removed.
-    if not hasattr(np, "bool"):
-        np.bool = bool
-    known = set(bpy.data.objects)
-    bpy.ops.import_scene.gltf(filepath=FOX)
-    new = [o for o in bpy.data.objects if o not in known]
-    fox = next(o for o in new if o.type == 'MESH' and any(m.type == 'ARMATURE' for m in o.modifiers))
-    rig = fox.modifiers[[m.type for m in fox.modifiers].index('ARMATURE')].object
-    walk = next(act for act in bpy.data.actions if act.name.startswith("Walk"))
-    for track in list(rig.animation_data.nla_tracks):
-        rig.animation_data.nla_tracks.remove(track)
-    rig.animation_data.action = walk
-    twin = fox.copy()
-    twin.data = fox.data.copy()
-    for coll in fox.users_collection:
-        coll.objects.link(twin)
+    fox, _rig, _walk = C.import_rigged(FOX)
+    twin = C.rigged_copy(fox, "fox twin")
     lat = C.lattice_around([fox])
     mod = smooth_ffd.add_smooth_ffd(fox, lat, viewport_level=LEVEL, backend="cpu")
     bpy.context.scene.frame_set(FRAMES[0])

@@ -1,6 +1,7 @@
 """A moving input against a static one (Deformer.follow): prints, per level, the frame time of W1
-with a static input, with a pose change every frame that the plan follows, and with a new plan
-every frame (what a moving input cost before plans could follow), all in one run.
+with a static input, with a pose change every frame that the plan follows (with a new clipping
+every frame, and holding the pieces: follow(hold=True)), and with a new plan every frame (what
+a moving input cost before plans could follow), all in one run.
 
 The pose: W1's torus bent (z grows with x^2) and twisted about z (the angle grows with x), both
 swinging with the frame, so every vertex moves every frame by about 1e-3 of the torus's size,
@@ -59,6 +60,17 @@ def run(level, frames, device):
         d.deform()
         moving.append(time.perf_counter() - t)
         follow.append(t1 - t)
+    # The same poses followed holding the pieces (Deformer.follow(hold=True)), from the same
+    # first plan.
+    h = smoothffd.Deformer(mesh, lattice, level=level, device=device)
+    h.deform()
+    holding, held, held_kept = [], 0, 0
+    for m in poses:
+        t = time.perf_counter()
+        held_kept += h.follow(m, hold=True)
+        held += h.plan.pieces_held
+        h.deform()
+        holding.append(time.perf_counter() - t)
     replan = []
     for m in poses[: max(3, frames // 3)]:
         t = time.perf_counter()
@@ -69,6 +81,8 @@ def run(level, frames, device):
           f"moving (follow + frame) {mv:.1f} ms = {mv / s:.2f}x static (follow {median_ms(follow):.1f} ms, "
           f"topology kept {kept}/{frames}); a new plan every frame {median_ms(replan):.1f} ms = "
           f"{median_ms(replan) / s:.2f}x static", flush=True)
+    print(f"  holding the pieces: moving {median_ms(holding):.1f} ms = {median_ms(holding) / s:.2f}x static "
+          f"(pieces held {held}/{frames}, topology kept {held_kept}/{frames})", flush=True)
     print("  follow stages (ms, last frame): " +
           ", ".join(f"{k} {v:.1f}" for k, v in d.plan.build_ms.items()), flush=True)
 

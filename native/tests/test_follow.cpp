@@ -1,7 +1,8 @@
 // Unit tests of follow_plan (plan/plan.hpp): a plan moved to a new pose is exactly the plan
 // build_plan_like makes of the new pose (the first plan's triangles, its pieces' diagonals
 // where the crossings are the same); its output topology is kept while the sub-mesh and its
-// edges' flags are the same, and only then.
+// edges' flags are the same, and only then. With hold, the pieces stay while they lie in
+// their knot boxes (hold_clip).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -175,11 +176,12 @@ TEST(Follow, FramesEqualAFreshPlans) {
 
 // Random polygon soups (repeated vertices, split and zero normals, UVs, weights) in random
 // lattices, followed through random moves of every size: each follow is build_plan_like's
-// plan, and a frame of it is finite.
+// plan, and a frame of it is finite; followed holding the pieces, it keeps them (a finite
+// frame) or is that same plan.
 TEST(Follow, RandomMeshesAndMoves) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> U(-1, 1);
-  int kept = 0, rebuilt = 0;
+  int kept = 0, rebuilt = 0, held = 0, reclipped = 0;
   for (int trial = 0; trial < 40; ++trial) {
     const LatticeSpec s = random_lattice(rng);
     const InputMesh m = random_mesh(rng, 20, 16);
@@ -199,6 +201,19 @@ TEST(Follow, RandomMeshesAndMoves) {
       (k ? kept : rebuilt)++;
       expect_same_plan(plan, build_plan_like(moved, s, opt, before));
       if (k) EXPECT_EQ(plan.triangles, before.triangles);
+      // Holding: the same pieces, or where one left its box the plan without hold.
+      Plan h = before;
+      follow_plan(h, moved, s, opt, true);
+      if (h.pieces_held) {
+        ++held;
+        EXPECT_EQ(h.patch_vertex, before.patch_vertex);
+        EXPECT_EQ(h.patch_bary, before.patch_bary);
+        const CpuOut hout = run_cpu(std::make_shared<const Plan>(h), zero_values(s));
+        for (float x : hout.pos) ASSERT_TRUE(std::isfinite(x));
+      } else {
+        ++reclipped;
+        expect_same_plan(h, plan);
+      }
     }
     // The followed plan evaluates as the plan build_plan_like makes (the same tables), finite.
     const CpuOut out = run_cpu(std::make_shared<const Plan>(plan), zero_values(s));
@@ -206,4 +221,45 @@ TEST(Follow, RandomMeshesAndMoves) {
   }
   EXPECT_GT(kept, 10);
   EXPECT_GT(rebuilt, 10);
+  EXPECT_GT(held, kept);
+  EXPECT_GT(reclipped, 5);
+}
+
+// A sheet of triangles whose column of vertices at x = 0.49 moves past the knot plane x = 0.5
+// of a quadratic lattice (0.01 past, a fiftieth of the knot span): a new clipping cuts its faces
+// otherwise, holding keeps every piece (the same sub-mesh, triangles and barycentric corners)
+// and its output vertices on the input vertices are the new clipping's. Moved on until a face
+// lies across the plane by a tenth of the span either side, the pieces are clipped again as
+// without hold.
+TEST(Follow, HoldKeepsThePiecesWhileTheyStayInTheirBoxes) {
+  const LatticeSpec s = bspline_box(2, 4);  // planes at 0.5
+  const InputMesh m = flat_grid(8, 0.09, 0.89);  // x, y at 0.09 + 0.1 i
+  auto shifted = [&](double dx) {
+    InputMesh moved = m;
+    for (size_t i = 0; i < moved.positions.size(); i += 3) moved.positions[i] += dx;
+    return moved;
+  };
+  const Plan first = build_plan(m, s, level(3));
+  Plan plain = first, held = first;
+  EXPECT_FALSE(follow_plan(plain, shifted(0.02), s, level(3)));
+  EXPECT_FALSE(plain.pieces_held);
+  EXPECT_TRUE(follow_plan(held, shifted(0.02), s, level(3), true));
+  EXPECT_TRUE(held.pieces_held);
+  EXPECT_EQ(held.patch_vertex, first.patch_vertex);
+  EXPECT_EQ(held.patch_triangle, first.patch_triangle);
+  EXPECT_EQ(held.patch_bary, first.patch_bary);
+  EXPECT_EQ(held.triangles, first.triangles);
+  // The input vertices' outputs: the exact FFD, as the new clipping's.
+  std::vector<float> D = zero_values(s);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-0.05f, 0.05f);
+  for (float& d : D) d = u(rng);
+  const CpuOut a = run_cpu(std::make_shared<const Plan>(held), D);
+  const CpuOut b = run_cpu(std::make_shared<const Plan>(plain), D);
+  for (int i = 0; i < 3 * held.input_vertices; ++i) EXPECT_NEAR(a.pos[i], b.pos[i], 1e-6f) << i;
+  // Far across the plane: clipped again, the plan build_plan_like makes.
+  Plan before = held;
+  EXPECT_FALSE(follow_plan(held, shifted(0.06), s, level(3), true));  // the face at 0.39 - 0.49 now at 0.45 - 0.55
+  EXPECT_FALSE(held.pieces_held);
+  expect_same_plan(held, build_plan_like(shifted(0.06), s, level(3), before));
 }

@@ -232,7 +232,7 @@ class Deformer:
         if self._evaluator is None:
             self._evaluator = _core.CpuEvaluator(self.plan, self.threads, pool=self._pool)
 
-    def follow(self, mesh=None, lattice=None):
+    def follow(self, mesh=None, lattice=None, hold=False):
         """Moves the planned mesh to a new pose without planning it again (an Armature, shape
         keys or a Wave above the lattice, or a lattice that moves with a bone: docs/algorithm.md,
         "A plan that follows the pose").
@@ -250,6 +250,15 @@ class Deformer:
         arrays of the last ones (only positions, normals, UVs and rest positions change). The
         next results equal those of a Deformer planned afresh for `mesh` with this plan's
         triangles (`Plan.input_triangles()`) within float rounding.
+
+        hold=True: keep the pieces the faces were cut into by the knot planes (the sub-mesh)
+        while each still lies in its knot box, to within what the lattice's weights barely
+        tell apart (docs/algorithm.md, "Holding the pieces"); the output topology is then kept
+        (unless a normal splits or joins) where a new clipping changes it as soon as one face
+        crosses a knot plane differently, which in an animation is nearly every frame. The
+        results then differ from a fresh plan's by a small part of the fit's own error, not by
+        float rounding. `plan.pieces_held` says whether they were held; where a piece has left
+        its box the pose is clipped again as without hold.
         """
         mesh = self.mesh if mesh is None else mesh
         lattice = self.lattice if lattice is None else lattice
@@ -277,7 +286,7 @@ class Deformer:
                                          mesh.face_offsets, mesh.corner_normals, mesh.uvs,
                                          mesh.vertex_weights, lattice._spec,
                                          memory_limit=float(avail) if avail else 0.0,
-                                         centre_rows=False)
+                                         centre_rows=False, hold=bool(hold))
             finally:
                 self._make_evaluator()
             self.mesh = mesh

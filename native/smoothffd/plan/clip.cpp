@@ -2,16 +2,48 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <functional>
 #include <limits>
 #include <map>
+#include <optional>
 #include <tuple>
 
 #include "smoothffd/core/cancel.hpp"
+#include "smoothffd/core/parallel.hpp"
 
 namespace sffd {
 namespace {
+
+// The knot planes of each axis (ascending), how close to one a vertex counts as on it, and
+// how many parameter units an object unit is along each axis.
+struct KnotPlanes {
+  std::array<std::vector<double>, 3> planes;
+  double floor_tol[3] = {0, 0, 0};
+  double grad[3] = {0, 0, 0};
+};
+
+KnotPlanes knot_planes(const LatticeSpec& lattice) {
+  KnotPlanes k;
+  for (int a = 0; a < 3; ++a) {
+    const std::vector<double>& pl = k.planes[a] = lattice.axes[a].planes();
+    // Vertices this close to a plane count as on it: meshes made in float32 (Blender's) put
+    // "on-plane" vertices some 1e-8 off it, and cutting there would leave near-duplicate clip
+    // vertices and zero-area slivers. 1e-5 of the smallest knot spacing is far below anything
+    // visible and far above float32 noise.
+    double spacing = 1.0;
+    for (size_t i = 1; i < pl.size(); ++i) spacing = std::min(spacing, pl[i] - pl[i - 1]);
+    double mag = pl.empty() ? 0.0 : std::max(std::fabs(pl.front()), std::fabs(pl.back()));
+    // The second term is the rounding of s = A p + b in double, which grows with |s| (knots
+    // far from 0), plus 1e-12 of the planes' extent: no larger for shifted knots.
+    const double extent = pl.size() > 1 ? pl.back() - pl.front() : 1.0;
+    k.floor_tol[a] = std::max(1e-5 * spacing, 1e-12 * extent + 16 * std::numeric_limits<double>::epsilon() * mag);
+    const double* A = lattice.object_to_param[a];
+    k.grad[a] = std::sqrt(A[0] * A[0] + A[1] * A[1] + A[2] * A[2]);
+  }
+  return k;
+}
 
 struct PolyVertex {
   int id;
@@ -269,24 +301,11 @@ ClipResult clip_to_knot_boxes(const std::vector<double>& X, const std::vector<in
   c.reach.resize(3 * (size_t)V);
   for (int v = 0; v < V; ++v) lattice.to_param(&X[3 * (size_t)v], &c.param[3 * (size_t)v]);
   std::array<std::vector<double>, 3>& planes = c.planes;
-  std::array<double, 3> tol;
+  const KnotPlanes kp = knot_planes(lattice);
   for (int a = 0; a < 3; ++a) {
-    planes[a] = lattice.axes[a].planes();
-    // Vertices this close to a plane count as on it: meshes made in float32 (Blender's) put
-    // "on-plane" vertices some 1e-8 off it, and cutting there would leave near-duplicate clip
-    // vertices and zero-area slivers. 1e-5 of the smallest knot spacing is far below anything
-    // visible and far above float32 noise.
-    double spacing = 1.0;
-    for (size_t i = 1; i < planes[a].size(); ++i)
-      spacing = std::min(spacing, planes[a][i] - planes[a][i - 1]);
-    double mag = planes[a].empty() ? 0.0 : std::max(std::fabs(planes[a].front()), std::fabs(planes[a].back()));
-    // The second term is the rounding of s = A p + b in double, which grows with |s| (knots
-    // far from 0), plus 1e-12 of the planes' extent: no larger for shifted knots.
-    const double extent = planes[a].size() > 1 ? planes[a].back() - planes[a].front() : 1.0;
-    tol[a] = std::max(1e-5 * spacing, 1e-12 * extent + 16 * std::numeric_limits<double>::epsilon() * mag);
-    c.floor_tol[a] = tol[a];
-    const double* A = lattice.object_to_param[a];
-    c.grad[a] = std::sqrt(A[0] * A[0] + A[1] * A[1] + A[2] * A[2]);
+    planes[a] = kp.planes[a];
+    c.floor_tol[a] = kp.floor_tol[a];
+    c.grad[a] = kp.grad[a];
   }
   // Input vertices: their neighbours (for side_of) and their snap distance, which only the
   // tests read (ClipResult::snap): kClipEdgeSnap of their longest edge.
@@ -355,6 +374,127 @@ ClipResult clip_to_knot_boxes(const std::vector<double>& X, const std::vector<in
       c.triangulate(p, nrm, t);
     }
   }
+  return out;
+}
+
+std::optional<ClipResult> hold_clip(const std::vector<double>& X, const std::vector<int>& tv,
+                                    const LatticeSpec& lattice, const ClipHold& held) {
+  const int V = (int)(X.size() / 3), T = (int)(tv.size() / 3), P = (int)held.patch_tri.size();
+  int SV = V;
+  for (int v : held.patch_vertex) SV = std::max(SV, v + 1);
+  if (held.patch_vertex.size() != 3 * (size_t)P || held.patch_bary.size() != 9 * (size_t)P) return std::nullopt;
+  ClipResult out;
+  out.origin_tri.assign(SV, -1);
+  out.origin_bary.assign(3 * (size_t)SV, 0.0);
+  // Each clip vertex from the first piece that has it: the lowest triangle with it, where
+  // clip_to_knot_boxes made it (pieces come in triangle order).
+  for (int p = 0; p < P; ++p) {
+    const int t = held.patch_tri[p];
+    if (t < 0 || t >= T) return std::nullopt;
+    for (int c = 0; c < 3; ++c) {
+      const int v = held.patch_vertex[3 * (size_t)p + c];
+      if (v < V || out.origin_tri[v] >= 0) continue;
+      out.origin_tri[v] = t;
+      for (int i = 0; i < 3; ++i) out.origin_bary[3 * (size_t)v + i] = held.patch_bary[9 * (size_t)p + 3 * c + i];
+    }
+  }
+  out.flat.resize(3 * (size_t)SV);
+  std::copy(X.begin(), X.end(), out.flat.begin());
+  for (int v = V; v < SV; ++v) {
+    const int t = out.origin_tri[v];
+    if (t < 0) return std::nullopt;  // a sub-vertex no piece has
+    for (int i = 0; i < 3; ++i) {
+      double x = 0;
+      for (int k = 0; k < 3; ++k) x += out.origin_bary[3 * (size_t)v + k] * X[3 * (size_t)tv[3 * t + k] + i];
+      out.flat[3 * (size_t)v + i] = x;
+    }
+  }
+  // Every piece still in one knot box: each corner past the box's planes by at most the snap
+  // distance of the piece's triangle's corners (kClipEdgeSnap of their longest edge, the most a
+  // fresh clipping's pieces reach past a plane there), or where the box's polynomial piece,
+  // continued to the corner, weighs the control points within kHoldKink of the piece the
+  // corner lies in.
+  std::vector<double> longest(V, 0.0);
+  for (int t = 0; t < T; ++t)
+    for (int k = 0; k < 3; ++k) {
+      const int u = tv[3 * t + k], w = tv[3 * t + (k + 1) % 3];
+      double d2 = 0;
+      for (int i = 0; i < 3; ++i) d2 += (X[3 * (size_t)u + i] - X[3 * (size_t)w + i]) * (X[3 * (size_t)u + i] - X[3 * (size_t)w + i]);
+      longest[u] = std::max(longest[u], d2);
+      longest[w] = std::max(longest[w], d2);
+    }
+  out.snap.assign(SV, 0.0);  // ClipResult::snap: the reach of the vertex's pieces
+  std::vector<double> piece_snap(P);
+  for (int p = 0; p < P; ++p) {
+    const int t = held.patch_tri[p];
+    double d2 = 0;
+    for (int k = 0; k < 3; ++k) d2 = std::max(d2, longest[tv[3 * t + k]]);
+    piece_snap[p] = kClipEdgeSnap * std::sqrt(d2);
+    for (int c = 0; c < 3; ++c) {
+      double& sn = out.snap[held.patch_vertex[3 * (size_t)p + c]];
+      sn = std::max(sn, piece_snap[p]);
+    }
+  }
+  const KnotPlanes kp = knot_planes(lattice);
+  std::vector<double> param(3 * (size_t)SV);
+  parallel_for(SV, default_threads(), [&](long long b, long long e) {
+    for (long long v = b; v < e; ++v) lattice.to_param(&out.flat[3 * (size_t)v], &param[3 * (size_t)v]);
+  });
+  // How far the weights of the box's polynomial piece, continued to s, are from those of the
+  // piece s lies in: the sum over control points of the weights' differences.
+  auto kink = [&](const AxisBasis& axis, int box, double s) {
+    const int at = axis.find_piece(s);
+    if (at == box) return 0.0;
+    double wb[kMaxTerms], wt[kMaxTerms], dw[kMaxTerms];
+    axis.weights(box, s, wb, dw);
+    axis.weights(at, s, wt, dw);
+    const AxisPiece &pb = axis.pieces()[box], &pt = axis.pieces()[at];
+    double sum = 0;
+    for (int k = 0; k < pb.count; ++k) {
+      double d = wb[k];
+      for (int m = 0; m < pt.count; ++m)
+        if (pt.index[m] == pb.index[k]) d -= wt[m];
+      sum += std::fabs(d);
+    }
+    for (int m = 0; m < pt.count; ++m) {
+      bool shared = false;
+      for (int k = 0; k < pb.count; ++k) shared |= pb.index[k] == pt.index[m];
+      if (!shared) sum += std::fabs(wt[m]);
+    }
+    return sum;
+  };
+  std::atomic<bool> left{false};  // a piece left its box
+  parallel_for(P, default_threads(), [&](long long pb, long long pe) {
+    for (long long p = pb; p < pe && !left.load(std::memory_order_relaxed); ++p) {
+      const int* pv = &held.patch_vertex[3 * (size_t)p];
+      for (int a = 0; a < 3; ++a) {
+        const AxisBasis& axis = lattice.axes[a];
+        double s[3];
+        for (int c = 0; c < 3; ++c) s[c] = param[3 * (size_t)pv[c] + a];
+        // The box: that of its centroid, its lowest or its highest corner, whichever the piece
+        // fits (a piece along a plane may lie in either box, one between two planes has its
+        // corners on them). Within the snap distance (at most a quarter of the box's span, as
+        // may_snap) a corner needs no check.
+        auto fits = [&](int box) {
+          const AxisPiece& piece = axis.pieces()[box];
+          const double reach = kp.floor_tol[a] + std::min(piece_snap[p] * kp.grad[a], 0.25 * (piece.hi - piece.lo));
+          for (int c = 0; c < 3; ++c)
+            if (!(s[c] >= piece.lo - reach && s[c] <= piece.hi + reach) && kink(axis, box, s[c]) > kHoldKink) return false;
+          return true;
+        };
+        const int mid = axis.find_piece((s[0] + s[1] + s[2]) / 3);
+        const int lo = axis.find_piece(std::min({s[0], s[1], s[2]})), hi = axis.find_piece(std::max({s[0], s[1], s[2]}));
+        if (!fits(mid) && (lo == mid || !fits(lo)) && (hi == mid || hi == lo || !fits(hi))) {
+          left.store(true);
+          return;
+        }
+      }
+    }
+  });
+  if (left.load()) return std::nullopt;
+  out.patch_vertex = held.patch_vertex;
+  out.patch_tri = held.patch_tri;
+  out.patch_bary = held.patch_bary;
   return out;
 }
 

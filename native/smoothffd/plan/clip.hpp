@@ -35,6 +35,7 @@
 // continuous across the plane.
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include "smoothffd/lattice/lattice_spec.hpp"
@@ -44,6 +45,10 @@ namespace sffd {
 // Relative snap distances (see above).
 constexpr double kClipEdgeSnap = 1.0 / 20.0;  // input vertices: of the crossed edge's length
 constexpr double kClipSnap = 1.0 / 32.0;      // clip vertices: of the segment they split
+// hold_clip: how far (the sum of the weights' differences over the control points) the
+// weights of a held piece's knot box, continued to one of its corners past the box's planes,
+// may be from those at the corner.
+constexpr double kHoldKink = 3e-3;
 
 struct ClipResult {
   std::vector<double> flat;         // #SV x 3: positions; rows [0, V) are the input vertices
@@ -74,5 +79,30 @@ struct ClipHint {
 // without its pieces' diagonals flipping where two cuts are about equally good.
 ClipResult clip_to_knot_boxes(const std::vector<double>& X, const std::vector<int>& tv,
                               const LatticeSpec& lattice, const ClipHint* hint = nullptr);
+
+// The pieces of an earlier clipping of the same triangles (a plan's patch_vertex, patch_triangle
+// and patch_bary), held in a new pose: every piece keeps its sub-vertices and its barycentric
+// corners in its triangle, and a clip vertex is placed where its barycentric point in the
+// lowest triangle that has it now lies. Returned where every held piece still lies in a knot
+// box (its centroid's, its lowest or its highest corner's) as far as the deformation can tell:
+// on each axis every corner lies in the box to within the snap distance of the piece's
+// triangle's corners (kClipEdgeSnap of their longest edge, at most a quarter of the box's span:
+// what a fresh clipping lets a piece reach past a plane), or else the box's polynomial piece,
+// continued to the corner, gives weights within kHoldKink (summed over the control points) of
+// those there. Else nullopt (then clip again). The deformation is a polynomial on each knot
+// box, continuous across the planes: past a plane by delta (knot spans) a piece sees a
+// polynomial that differs from its box's by about the weights' difference times the control
+// points' spread about an affine map, growing as delta to the power of the continuity there
+// plus one: on uniform knots 3e-3 is about 1/10 of a span for a cubic B-spline axis, 1/26 for
+// a quadratic one, 1/670 for a linear one. Each sample still takes the polynomial piece it lies
+// in (the deformation is exact at the samples); the fit spans the little that differs
+// (docs/algorithm.md, "Holding the pieces", has the accuracy measured).
+struct ClipHold {
+  const std::vector<int>& patch_vertex;
+  const std::vector<int>& patch_tri;
+  const std::vector<double>& patch_bary;
+};
+std::optional<ClipResult> hold_clip(const std::vector<double>& X, const std::vector<int>& tv,
+                                    const LatticeSpec& lattice, const ClipHold& held);
 
 }  // namespace sffd

@@ -109,7 +109,8 @@ std::vector<int> Plan::* const kOutputTables[] = {
     &Plan::render_triangles};
 
 Plan build(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt,
-           const Triangulation* triangulation, const Plan* like, Plan* previous, bool* kept, bool* gave_up) {
+           const Triangulation* triangulation, const Plan* like, bool hold, Plan* previous, bool* kept,
+           bool* gave_up) {
   check_input_mesh(mesh);
   if (opt.level < 1) throw std::invalid_argument("level: must be at least 1");
   // The tessellation tables grow as L^2 whatever the mesh: level 2^31 - 1 from the bindings
@@ -130,10 +131,15 @@ Plan build(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions&
   // 2. Knot-box clipping (the patch count, checked against the memory limit before any table of
   // that size); the rest surface, bounded so that no patch nor piece folds; the clip vertices
   // moved onto it.
+  std::optional<ClipResult> held;
+  if (hold && like) held = hold_clip(X, in.tv, lattice, ClipHold{like->patch_vertex, like->patch_triangle, like->patch_bary});
   const ClipHint hint{like ? like->patch_vertex : in.tv, like ? like->patch_triangle : in.tv};
-  ClipResult clip = clip_to_knot_boxes(X, in.tv, lattice, like ? &hint : nullptr);
+  ClipResult clip = held ? std::move(*held) : clip_to_knot_boxes(X, in.tv, lattice, like ? &hint : nullptr);
+  plan.pieces_held = held.has_value();
   check_memory_limit(opt, mesh, lattice, (int)(in.tv.size() / 3), clip);
+  timer.lap("clip");
   BoundedRest rest = bound_rest_surface(X, in, clip);
+  timer.lap("rest_surface");
   SubVertices sub_vertices = place_sub_vertices(mesh, in, rest.surface, clip);
   plan.input_vertices = (int)(X.size() / 3);
   plan.sub_vertices = clip.sub_vertices();
@@ -141,14 +147,16 @@ Plan build(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions&
   plan.flat_triangles = rest.flat_triangles;
   plan.bounded_vertices = rest.bounded_vertices;
   plan.turned_normals = rest.turned_normals;
-  timer.lap("clip");
+  timer.lap("sub_vertices");
 
   // 3. Patches: where each lies on the input, its corner normals bounded on the sub-mesh, and
   // the sub-mesh's adjacency.
   build_patch_sources(plan, mesh, in.triangulation, clip);
   EdgeTable sub = build_edges(clip.patch_vertex);
+  timer.lap("sources_edges");
   std::vector<uint8_t> sharp = bound_patch_normals(plan, patch_corner_normals(X, in, clip, rest.shade), sub,
                                                    sub_vertices.position, clip, in.adjust.flat, cos_tol);
+  timer.lap("patch_normals");
   build_adjacency(plan, clip.patch_vertex, sub, sharp, clip.patch_tri, in.adjust.flat);
   timer.lap("adjacency");
 
@@ -211,15 +219,15 @@ Plan build(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions&
 
 Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt,
                 const Triangulation* triangulation) {
-  return build(mesh, lattice, opt, triangulation, nullptr, nullptr, nullptr, nullptr);
+  return build(mesh, lattice, opt, triangulation, nullptr, false, nullptr, nullptr, nullptr);
 }
 
 Plan build_plan_like(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt, const Plan& like) {
   const Triangulation tr{like.input_triangle_corner, like.input_triangle_face};
-  return build(mesh, lattice, opt, &tr, &like, nullptr, nullptr, nullptr);
+  return build(mesh, lattice, opt, &tr, &like, false, nullptr, nullptr, nullptr);
 }
 
-bool follow_plan(Plan& plan, const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt) {
+bool follow_plan(Plan& plan, const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt, bool hold) {
   if (opt.level != plan.level)
     throw std::invalid_argument("follow_plan: the options' level differs from the plan's");
   if ((int)(mesh.positions.size() / 3) != plan.input_vertices || (int)mesh.corner_vertex.size() != plan.input_corners)
@@ -227,7 +235,7 @@ bool follow_plan(Plan& plan, const InputMesh& mesh, const LatticeSpec& lattice, 
   const Triangulation tr{plan.input_triangle_corner, plan.input_triangle_face};
   bool kept = false, gave_up = false;
   try {
-    Plan next = build(mesh, lattice, opt, &tr, &plan, &plan, &kept, &gave_up);
+    Plan next = build(mesh, lattice, opt, &tr, &plan, hold, &plan, &kept, &gave_up);
     plan = std::move(next);
   } catch (...) {
     if (gave_up) plan = Plan();  // out of memory while building the new tables in the old ones

@@ -123,6 +123,7 @@ struct Plan {
   int turned_normals = 0;   // input triangle corners whose shading normal was turned toward
                             // the geometry, which cannot follow it (bound_render_normals)
   int turned_sub_normals = 0;  // patch corners turned again on the sub-mesh (its own bound)
+  bool pieces_held = false;    // follow_plan held the previous plan's pieces (hold_clip)
 
   // --- lattice tables
   std::vector<AxisPieceF> pieces;  // the three axes' pieces, concatenated
@@ -245,6 +246,14 @@ Plan build_plan_like(const InputMesh& mesh, const LatticeSpec& lattice, const Pl
 // then left as it was, except when memory runs out while its arrays are being reused (after
 // everything that depends on positions; nothing is cancelled there): then it is left empty (no
 // patches). Evaluators of the old plan must not be used after it.
-bool follow_plan(Plan& plan, const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& options);
+//
+// hold: keep the old plan's pieces (its sub-mesh) in the new pose where each still lies in
+// its knot box (hold_clip, plan/clip.hpp; pieces_held says whether they were), instead of
+// clipping again: the output topology is then kept unless a normal splits or joins, where a
+// new clipping changes it as soon as one face crosses a knot plane differently. The result is
+// then not build_plan_like's: it differs by a small part of the fit's error (docs/algorithm.md,
+// "Holding the pieces"). Where a piece has left its box the new pose is clipped as without hold.
+bool follow_plan(Plan& plan, const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& options,
+                 bool hold = false);
 
 }  // namespace sffd

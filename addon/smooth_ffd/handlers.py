@@ -10,7 +10,7 @@ import threading
 import bpy
 from bpy.app.handlers import persistent
 
-from . import compat, frames, holdframes, linked, live, nodegroup, objects, pipeline, \
+from . import compat, frames, holdframes, holds, linked, live, nodegroup, objects, pipeline, \
     stack_input, state, statusline
 
 
@@ -338,6 +338,10 @@ def on_undo_redo(scene, *_args):
 @persistent
 def on_render_pre(scene, *_args):
     state.flags.rendering = True
+    # With motion blur, a moving input's subframes hold the pieces the frame's first evaluation
+    # cut (plans.hold_pieces): one output topology over the shutter.
+    state.flags.render_shutter = holds.shutter(scene) + (scene.frame_current + scene.frame_subframe,) \
+        if holds.motion_blur(scene) else None
     # With motion blur, adaptive tessellations get one topology over the frame's shutter
     # (holdframes.hold_shutter: the subframes are evaluated here, before the render's).
     if not state.flags.busy:
@@ -358,6 +362,7 @@ def on_render_init(scene, *_args):
 @persistent
 def on_render_done(scene, *_args):
     state.flags.rendering = False
+    state.flags.render_shutter = None
     holdframes.end_shutter(smooth_ffd_modifiers(scene))
     # Back to the viewport level for the interactive session; modifiers reading the stack's
     # geometry read the viewport's on its next evaluation (their result is the render's).

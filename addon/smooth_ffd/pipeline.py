@@ -65,7 +65,9 @@ def update_modifier(obj, mod, p):
         # weights: the lattice's vertex group; a per-frame value like the points (adding or
         # removing it changes the lattice's structure key, so that replans).
         lattice = plans.lattice(st, rest, pts, interp, got.l2o, got.settings.strength, weights)
-        plan_key = plans.ensure_plan(st, got.source, lattice, got.level, got.backend, tess)
+        st.pieces_note = None
+        plan_key = plans.ensure_plan(st, got.source, lattice, got.level, got.backend, tess,
+                                     plans.hold_pieces(st, render, frame))
         hold, hold_note = holds.lookup(ro, st, render, frame, holds.token(plan_key),
                                        tess.setting) if tess.adaptive else (None, None)
         if tess.adaptive and render and hold is None and hold_note is None and \
@@ -106,6 +108,8 @@ def update_modifier(obj, mod, p):
             head, tail = _adaptive_status(used, got, res, hold_note, tail)
         if fit_error is not None:
             tail += f", fit error \u2264 {float(fit_error.max(initial=0.0)):.3g}"
+        if st.pieces_note is not None:
+            tail += f", {st.pieces_note}"
         statusline.set_ok(obj, mod, st, (head, tail), shown, frame,
                       wrote_result=True, scene=p.scene)
         state.timings[state.uid(ro)] = {
@@ -166,7 +170,8 @@ def tessellation_counts(obj, mod, p):
         return None
     rest, pts, interp, weights = got.lattice
     lattice = plans.lattice(st, rest, pts, interp, got.l2o, got.settings.strength, weights)
-    plan_key = plans.ensure_plan(st, got.source, lattice, got.level, got.backend, got.tess)
+    hold = plans.hold_pieces(st, p.render, frames.scene_frame(p.scene, p.depsgraph))
+    plan_key = plans.ensure_plan(st, got.source, lattice, got.level, got.backend, got.tess, hold)
     return holds.token(plan_key), got.tess.setting, plans.counts(st, lattice)
 
 

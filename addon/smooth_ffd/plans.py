@@ -4,7 +4,7 @@ moved to each new pose of the same faces: follow) and the core's frame on it."""
 import bpy
 import numpy as np
 
-from . import core, inputs, state
+from . import core, inputs, live, state
 
 
 def lattice(st, rest, pts, interp, l2o, strength, weights):
@@ -38,9 +38,10 @@ class _progress:
             self.wm.progress_end()
 
 
-def ensure_plan(st, source, lattice, level, backend, tess=None):
+def ensure_plan(st, source, lattice, level, backend, tess=None, hold=False):
     """st.deformer for these inputs: the cached one while its key holds, else one that
-    follows the new pose (follow), else a new plan. Returns the plan's key. tess
+    follows the new pose (follow; hold: keeping its pieces, hold_pieces), else a new plan.
+    Returns the plan's key. tess
     (tessellation.Tess) adaptive: one adaptive plan on the backend serves every tolerance and
     max level, which are set on it for each frame (the plan does not depend on them: a camera
     moving in Screen mode replans nothing)."""
@@ -51,7 +52,7 @@ def ensure_plan(st, source, lattice, level, backend, tess=None):
         faces_key = (source.topology_key, inputs.digest(source.material_index),
                      source.uvs is None, source.weights is None, lattice.basis_key(), mode,
                      backend)
-        if not follow(st, source, lattice, faces_key, plan_key, adaptive):
+        if not follow(st, source, lattice, faces_key, plan_key, adaptive, hold):
             st.deformer = st.result = None
             st.outs = {}
             long = len(source.corner_vertices) * (1 if adaptive else level * level) > 2_000_000
@@ -68,13 +69,39 @@ def ensure_plan(st, source, lattice, level, backend, tess=None):
     return plan_key
 
 
-def follow(st, source, lattice, faces_key, plan_key, adaptive):
+def hold_pieces(st, render, frame):
+    """How this update's follow treats the plan's pieces (Deformer.follow's hold,
+    docs/algorithm.md, "Holding the pieces"):
+    - in the viewport while an animation plays: True, kept while every piece still lies in its
+      knot box (playback then writes positions only where they hold; a stopped animation,
+      scrubbing and renders clip anew);
+    - in a render with motion blur (state.flags.render_shutter, from render_pre): the frame
+      rendered is clipped anew; the other times of its shutter (the subframes its deformation
+      blur is made of) keep the pieces of the last clipping in that shutter wherever they lie
+      ('always'), so that they all share the frame's output topology;
+    - else False.
+    st.pieces_for: the shutter in which the plan's pieces were last clipped."""
+    if not render:
+        st.pieces_for = None
+        return live.playing()
+    sh = state.flags.render_shutter
+    if sh is None or not sh[0] - 1e-4 <= frame <= sh[1] + 1e-4:
+        st.pieces_for = None
+        return False
+    if abs(frame - sh[2]) > 1e-4 and st.pieces_for == sh:
+        return "always"
+    st.pieces_for = sh
+    return False
+
+
+def follow(st, source, lattice, faces_key, plan_key, adaptive, hold=False):
     """Moves st's plan to the new pose of the same faces (an Armature, shape keys, a Wave
     above: only positions, normals, UVs or weights changed) and to where the lattice now lies
     relative to the object (a lattice parented to a bone: the same basis, another placement),
     Deformer.follow, instead of planning again. False where it cannot: no plan yet, other
     faces or materials, another lattice basis (kind, interpolation, resolution, point
     weighting), level or backend, or a UV map or Vertex Group weighting added or removed.
+    hold: keep the pieces (hold_pieces); st.pieces_note says so on a render's subframe.
 
     Where the core keeps the output topology (no face crosses the lattice's knot planes
     differently, no normal splits or joins) st.topology_token and st.output stay: the result
@@ -86,13 +113,18 @@ def follow(st, source, lattice, faces_key, plan_key, adaptive):
     if st.deformer is None or st.faces_key != faces_key:
         return False
     try:
-        kept = st.deformer.follow(core.make_mesh(source), lattice=lattice)
+        kept = st.deformer.follow(core.make_mesh(source), lattice=lattice, hold=hold)
     except ValueError:   # faces the core reads as other ones, positions out of range
         return False
     except Exception:
         st.deformer = st.plan_key = st.faces_key = None   # never half a pose
         raise
     state.plans_followed[0] += 1
+    if hold:
+        state.plans_followed_held[0] += st.deformer.plan.pieces_held
+        sh = state.flags.render_shutter
+        if hold == "always" and sh is not None:
+            st.pieces_note = f"pieces held over the shutter {sh[0]:g}-{sh[1]:g}"
     old = st.plan_key
     if kept and not adaptive:
         state.plans_followed_kept[0] += 1

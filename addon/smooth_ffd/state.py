@@ -68,6 +68,9 @@ class ModifierState:
         self.shutter = None       # ((from, to), plan token, setting, counts) held over a render's
         #                           motion-blur shutter (holds.py)
         self.hold_cache = {}      # holds.lookup: a saved hold's counts as arrays
+        self.pieces_for = None    # the render shutter whose first evaluation clipped the plan's
+        #                           pieces (plans.hold_pieces: its other subframes hold them)
+        self.pieces_note = None   # what holding the pieces did on the last update, for the status
 
 
 # uid -> ModifierState, and uid -> the last update's timings (pipeline.last_timing)
@@ -154,6 +157,8 @@ class Pass:
 class _Flags:
     busy = False        # an update runs (or handlers are muted): handlers do nothing
     rendering = False   # between render_init and render_complete/cancel
+    render_shutter = None  # (from, to, frame): the frame rendered and its motion-blur shutter
+    #                        (render_pre; plans.hold_pieces)
 
 
 flags = _Flags()
@@ -228,10 +233,12 @@ core_module = [None]
 # How many results were computed, and where.
 counters = {"computed": 0, "early": 0, "post": 0, "early_errors": 0}
 # How many plans were built (a rename must not build one), how many times a plan followed a
-# new pose of its source instead (plans.follow), and how many of those kept the output topology.
+# new pose of its source instead (plans.follow), how many of those kept the output topology, and
+# how many held the pieces.
 plans_built = [0]
 plans_followed = [0]
 plans_followed_kept = [0]
+plans_followed_held = [0]   # follows that held the plan's pieces (plans.hold_pieces)
 # How the result mesh was written: its topology rebuilt, or only its values (positions,
 # normals, ...) over the topology it had.
 mesh_writes = {"topology": 0, "values": 0}

@@ -567,7 +567,7 @@ PYBIND11_MODULE(_core, m) {
       [input_mesh](const std::shared_ptr<Plan>& plan, Arr<double> positions, Arr<int> corner_vertex, Arr<int> face_offset,
                    std::optional<Arr<float>> corner_normals, std::optional<Arr<float>> uvs,
                    std::optional<Arr<float>> vertex_weights, const LatticeSpec& spec,
-                   double sharp_angle_degrees, double memory_limit, bool centre_rows, bool hold) {
+                   double sharp_angle_degrees, double memory_limit, bool centre_rows, int hold) {
         // The Python object and its argument caster hold the plan; anything more is an
         // evaluator (or another owner) that would read tables changed under it.
         if (plan.use_count() > 2)
@@ -578,17 +578,19 @@ PYBIND11_MODULE(_core, m) {
         opt.sharp_angle_degrees = sharp_angle_degrees;
         opt.memory_limit = memory_limit;
         opt.centre_rows = centre_rows;
-        return interruptible([&] { return follow_plan(*plan, mesh, spec, opt, hold); });
+        if (hold < 0 || hold > 2) throw std::invalid_argument("hold: 0 (clip), 1 (hold the pieces where they stay in their knot boxes) or 2 (hold them)");
+        return interruptible([&] { return follow_plan(*plan, mesh, spec, opt, static_cast<HoldPieces>(hold)); });
       },
       py::arg("plan").none(false), py::arg("positions"), py::arg("corner_vertices"), py::arg("face_offsets"),
       py::arg("corner_normals"), py::arg("uvs"), py::arg("vertex_weights"), py::arg("lattice"),
       py::arg("sharp_angle_degrees") = 1.0, py::arg("memory_limit") = 0.0, py::arg("centre_rows") = true,
-      py::arg("hold") = false,
+      py::arg("hold") = 0,
       "Replaces plan by the plan of the same input in a new pose (build_plan with the plan's own "
       "triangulation), keeping its output topology where no face crosses the knot planes "
-      "differently and no normal splits or joins; returns whether it was kept. hold: keep the "
-      "previous pieces while each still lies in its knot box within the clipping's snap distances "
-      "(Plan.pieces_held), the output topology with them unless a normal splits or joins. Refused "
+      "differently and no normal splits or joins; returns whether it was kept. hold: 0 clip the new "
+      "pose; 1 keep the previous pieces while each still lies in its knot box (Plan.pieces_held), "
+      "the output topology with them unless a normal splits or joins; 2 keep them wherever they "
+      "lie. Refused "
       "while an evaluator holds the plan.");
   m.def("estimate_plan_bytes", &estimate_plan_bytes, py::arg("patches"), py::arg("sub_vertices"),
         py::arg("level"), py::arg("fit_degree"), py::arg("uvs"),

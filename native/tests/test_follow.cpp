@@ -203,7 +203,7 @@ TEST(Follow, RandomMeshesAndMoves) {
       if (k) EXPECT_EQ(plan.triangles, before.triangles);
       // Holding: the same pieces, or where one left its box the plan without hold.
       Plan h = before;
-      follow_plan(h, moved, s, opt, true);
+      follow_plan(h, moved, s, opt, HoldPieces::checked);
       if (h.pieces_held) {
         ++held;
         EXPECT_EQ(h.patch_vertex, before.patch_vertex);
@@ -243,7 +243,7 @@ TEST(Follow, HoldKeepsThePiecesWhileTheyStayInTheirBoxes) {
   Plan plain = first, held = first;
   EXPECT_FALSE(follow_plan(plain, shifted(0.02), s, level(3)));
   EXPECT_FALSE(plain.pieces_held);
-  EXPECT_TRUE(follow_plan(held, shifted(0.02), s, level(3), true));
+  EXPECT_TRUE(follow_plan(held, shifted(0.02), s, level(3), HoldPieces::checked));
   EXPECT_TRUE(held.pieces_held);
   EXPECT_EQ(held.patch_vertex, first.patch_vertex);
   EXPECT_EQ(held.patch_triangle, first.patch_triangle);
@@ -257,9 +257,15 @@ TEST(Follow, HoldKeepsThePiecesWhileTheyStayInTheirBoxes) {
   const CpuOut a = run_cpu(std::make_shared<const Plan>(held), D);
   const CpuOut b = run_cpu(std::make_shared<const Plan>(plain), D);
   for (int i = 0; i < 3 * held.input_vertices; ++i) EXPECT_NEAR(a.pos[i], b.pos[i], 1e-6f) << i;
+  // Held always: the same pieces however far.
+  Plan always = held;
+  EXPECT_TRUE(follow_plan(always, shifted(0.06), s, level(3), HoldPieces::always));
+  EXPECT_TRUE(always.pieces_held);
+  EXPECT_EQ(always.patch_vertex, first.patch_vertex);
+  EXPECT_EQ(always.triangles, first.triangles);
   // Far across the plane: clipped again, the plan build_plan_like makes.
   Plan before = held;
-  EXPECT_FALSE(follow_plan(held, shifted(0.06), s, level(3), true));  // the face at 0.39 - 0.49 now at 0.45 - 0.55
+  EXPECT_FALSE(follow_plan(held, shifted(0.06), s, level(3), HoldPieces::checked));  // the face at 0.39 - 0.49 now at 0.45 - 0.55
   EXPECT_FALSE(held.pieces_held);
   expect_same_plan(held, build_plan_like(shifted(0.06), s, level(3), before));
 }

@@ -258,7 +258,9 @@ class Deformer:
         crosses a knot plane differently, which in an animation is nearly every frame. The
         results then differ from a fresh plan's by a small part of the fit's own error, not by
         float rounding. `plan.pieces_held` says whether they were held; where a piece has left
-        its box the pose is clipped again as without hold.
+        its box the pose is clipped again as without hold. hold='always': keep them wherever
+        they now lie (one topology over a render's motion-blur subframes; the farther a piece
+        reaches into the next knot box, the less accurate its patch).
         """
         mesh = self.mesh if mesh is None else mesh
         lattice = self.lattice if lattice is None else lattice
@@ -273,6 +275,10 @@ class Deformer:
                 and np.array_equal(mesh.corner_vertices, old.corner_vertices)):
             raise ValueError("mesh: its faces differ from the planned mesh's (follow moves the same "
                              "faces to a new pose); plan it with a new Deformer")
+        codes = {False: 0, True: 1, "always": 2}
+        if not isinstance(hold, (bool, str)) or hold not in codes:
+            raise ValueError(f"hold: False, True or 'always', got {hold!r}")
+        hold_code = codes[hold]
         with self._lock:
             t0 = time.perf_counter()
             if self._triangulation is None:
@@ -286,7 +292,7 @@ class Deformer:
                                          mesh.face_offsets, mesh.corner_normals, mesh.uvs,
                                          mesh.vertex_weights, lattice._spec,
                                          memory_limit=float(avail) if avail else 0.0,
-                                         centre_rows=False, hold=bool(hold))
+                                         centre_rows=False, hold=hold_code)
             finally:
                 self._make_evaluator()
             self.mesh = mesh

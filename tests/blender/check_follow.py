@@ -32,7 +32,12 @@ plan to the new pose (smoothffd.Deformer.follow) instead of planning again.
 - a bake of the shape-key animation follows the plan too: no plan built, every baked frame
   the played result;
 - the posed input the add-on reads equals the twin object's evaluated mesh (the same stack
-  without Smooth FFD), and the source mesh is never written.
+  without Smooth FFD), and the source mesh is never written;
+- the pieces held (plans.hold_pieces): the character in a slight idle motion played in the
+  viewport follows holding its pieces as the core's Deformer.follow(hold=True) does, and
+  writes no topology where they hold; the waving character rendered with motion blur has one
+  topology over the shutter (its subframes evaluated by hand after render_pre, and a real
+  Cycles render of frame 2), where without the shutter known the subframes' differ.
 """
 import os
 import sys
@@ -43,7 +48,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
-from sffd_testlib import smooth_ffd, core, latticeio, meshio, objects, pipeline, state  # noqa: E402
+from sffd_testlib import smooth_ffd, core, handlers, latticeio, live, meshio, objects, pipeline, \
+    state  # noqa: E402
 
 sys.path.insert(0, os.path.join(T.ROOT, "blender_scenes"))
 import character as C  # noqa: E402
@@ -71,7 +77,8 @@ def triangulate(me):
 
 def counters():
     return dict(built=state.plans_built[0], followed=state.plans_followed[0],
-                kept=state.plans_followed_kept[0], topology=state.mesh_writes["topology"],
+                kept=state.plans_followed_kept[0], held=state.plans_followed_held[0],
+                topology=state.mesh_writes["topology"],
                 values=state.mesh_writes["values"])
 
 
@@ -83,10 +90,10 @@ def delta(before):
 class Reference:
     """The core's Deformer on the twin's posed mesh (the stack above without Smooth FFD),
     built on the first pose and following every later one: what the add-on's plan cache
-    must reproduce, computed without it."""
+    must reproduce, computed without it. hold: following with hold=True (the pieces held)."""
 
-    def __init__(self, a, twin, lat):
-        self.a, self.twin, self.lat = a, twin, lat
+    def __init__(self, a, twin, lat, hold=False):
+        self.a, self.twin, self.lat, self.hold = a, twin, lat, hold
         self.deformer = None
 
     def source(self):
@@ -107,7 +114,7 @@ class Reference:
         if self.deformer is None:
             self.deformer = core.make_deformer(src, lattice, LEVEL, "cpu")
         else:
-            kept = self.deformer.follow(core.make_mesh(src), lattice=lattice)
+            kept = self.deformer.follow(core.make_mesh(src), lattice=lattice, hold=self.hold)
         res = self.deformer.deform(lattice, normals=True, layout="corners")
         return np.asarray(res.positions, np.float64), np.asarray(res.triangles), kept
 
@@ -386,6 +393,137 @@ def test_imported_rig():
     play("imported rig", fox, twin, lat, mod, fresh=True)
 
 
+def test_held_pieces():
+    """(d) Played in the viewport (live.playing() made true: a background session plays
+    nothing), the docs' character in a slight idle motion follows holding its pieces: every
+    frame's positions and triangles are those of the core's Deformer following the same poses
+    with hold=True, it holds on the frames the core holds (most of them), and those that keep
+    the topology write none. (e) With motion blur, the character waving: frame 2's shutter
+    subframes (1.75, 2, 2.25) rendered without render_pre get other topologies; after
+    render_pre, the frame clips and its subframes hold those pieces: one topology, said in the
+    status; a real Cycles render of frame 2 with motion blur shows one topology on every
+    evaluation it makes."""
+    T.clear()
+    sc = bpy.context.scene
+    rig = C.armature("idle", amplitude=0.02)
+    a = C.character_object(1, "A", rig)
+    twin = C.character_object(1, "B", rig)
+    lat = C.lattice_around([a])
+    mod = smooth_ffd.add_smooth_ffd(a, lat, viewport_level=LEVEL, render_level=LEVEL, backend="cpu")
+    size = T.lattice_size(a, lat)
+    ref = Reference(a, twin, lat, hold=True)
+    playing = live.playing
+    live.playing = lambda: True
+    try:
+        sc.frame_set(FRAMES[0])
+        T.update()
+        ref.frame()
+        held = kept_frames = 0
+        last_tris = T.triangles(result_mesh(a, mod))
+        for f in FRAMES[1:]:
+            before = counters()
+            sc.frame_set(f)
+            d = delta(before)
+            exp, exp_tris, kept = ref.frame()
+            core_held = bool(ref.deformer.plan.pieces_held)
+            me = result_mesh(a, mod)
+            got, tris = T.positions(me).astype(np.float64), T.triangles(me)
+            err = err_of(got, exp, size)
+            T.check(f"held pieces: frame {f}: the core's Deformer following with hold=True",
+                    err <= TOL and np.array_equal(tris, exp_tris),
+                    f"err {err:.1e} of the lattice size, {len(got)} vs {len(exp)} vertices")
+            T.check(f"held pieces: frame {f}: followed, held as the core held",
+                    d["built"] == 0 and d["followed"] == 1 and d["held"] == int(core_held)
+                    and d["kept"] == int(kept) and (d["topology"] == 0 if kept else True)
+                    and (np.array_equal(tris, last_tris) if kept else True),
+                    f"{d}, core held {core_held}, kept {kept}")
+            held += d["held"]
+            kept_frames += d["kept"]
+            last_tris = tris
+        print(f"held pieces: playback held the pieces on {held} of {len(FRAMES) - 1} follows, "
+              f"kept the topology on {kept_frames}")
+        T.check("held pieces: playback holds the pieces on most frames", held >= 3, str(held))
+    finally:
+        live.playing = playing
+    # (e) motion blur, the character waving
+    T.clear()
+    rig = C.armature("rig")
+    a = C.character_object(1, "A", rig)
+    lat = C.lattice_around([a])
+    mod = smooth_ffd.add_smooth_ffd(a, lat, viewport_level=LEVEL, render_level=LEVEL, backend="cpu")
+    sc.render.use_motion_blur = True
+    sc.render.motion_blur_shutter = 0.5
+    subframes = ((1, 0.75), (2, 0.0), (2, 0.25))
+
+    def shutter_topologies():
+        tris = {}
+        for f, s in subframes:
+            sc.frame_set(f, subframe=s)
+            smooth_ffd.update(a, render=True)
+            tris[f + s] = T.triangles(result_mesh(a, mod)).copy()
+        return tris
+
+    free = shutter_topologies()
+    sizes = {t: len(x) for t, x in free.items()}
+    T.check("motion blur, shutter unknown: the subframes' topologies differ",
+            not all(np.array_equal(free[1.75], x) for x in free.values()), str(sizes))
+    sc.frame_set(2)
+    handlers.on_render_pre(sc)
+    try:
+        subframes = ((2, 0.0), (1, 0.75), (2, 0.25))   # the frame first, as Cycles evaluates
+        held_tris = shutter_topologies()
+        first = held_tris[2.0]
+        T.check("motion blur: one topology over the shutter",
+                all(np.array_equal(first, x) for x in held_tris.values()),
+                f"{ {t: len(x) for t, x in held_tris.items()} } (unheld {sizes})")
+        T.check("motion blur: the status says it",
+                "pieces held over the shutter 1.75-2.25" in smooth_ffd.status(mod),
+                smooth_ffd.status(mod))
+    finally:
+        handlers.on_render_done(sc)
+    T.check("after the render: no shutter known", state.flags.render_shutter is None)
+    # A real Cycles render of frame 2 with motion blur.
+    cam = T.link(bpy.data.objects.new("cam", bpy.data.cameras.new("cam")))
+    cam.location, cam.rotation_euler = (0, -8, 1), (np.pi / 2, 0, 0)
+    sc.camera = cam
+    sc.render.engine = 'CYCLES'
+    sc.cycles.samples = 1
+    sc.cycles.use_denoising = False
+    sc.cycles.device = 'CPU'
+    sc.render.resolution_x = sc.render.resolution_y = 16
+    sc.render.resolution_percentage = 100
+    seen, texts, rendering = [], [], [False]
+
+    def started(scene, *_):   # after the add-on's render_pre (the shutter known)
+        rendering[0] = True
+
+    def ended(scene, *_):
+        rendering[0] = False
+
+    def probe(scene, *_):     # the render's evaluations of the frame and its subframes
+        if rendering[0]:
+            seen.append((round(scene.frame_current + scene.frame_subframe, 3),
+                         len(result_mesh(a, mod).polygons)))
+            texts.append(smooth_ffd.status(mod))
+
+    hooks = ((bpy.app.handlers.render_pre, started), (bpy.app.handlers.render_post, ended),
+             (bpy.app.handlers.frame_change_post, probe))
+    for hs, fn in hooks:
+        hs.append(fn)
+    try:
+        sc.frame_set(2)
+        bpy.ops.render.render(write_still=False)
+    finally:
+        for hs, fn in hooks:
+            hs.remove(fn)
+    times = sorted({t for t, _ in seen})
+    T.check("Cycles render with motion blur: one topology on every subframe it evaluates",
+            len(times) >= 2 and len({n for _, n in seen}) == 1
+            and any("pieces held over the shutter" in t for t in texts),
+            f"{seen}; {texts[-1] if texts else None}")
+    sc.render.use_motion_blur = False
+
+
 def main():
     T.setup()
     T.run("armature, quads", test_armature, False)
@@ -394,6 +532,7 @@ def main():
     T.run("moving lattice", test_moving_lattice)
     T.run("wave and displace", test_wave_and_displace)
     T.run("imported rig", test_imported_rig)
+    T.run("held pieces", test_held_pieces)
     T.finish()
 
 

@@ -378,7 +378,7 @@ ClipResult clip_to_knot_boxes(const std::vector<double>& X, const std::vector<in
 }
 
 std::optional<ClipResult> hold_clip(const std::vector<double>& X, const std::vector<int>& tv,
-                                    const LatticeSpec& lattice, const ClipHold& held) {
+                                    const LatticeSpec& lattice, const ClipHold& held, bool check) {
   const int V = (int)(X.size() / 3), T = (int)(tv.size() / 3), P = (int)held.patch_tri.size();
   int SV = V;
   for (int v : held.patch_vertex) SV = std::max(SV, v + 1);
@@ -464,7 +464,7 @@ std::optional<ClipResult> hold_clip(const std::vector<double>& X, const std::vec
     return sum;
   };
   std::atomic<bool> left{false};  // a piece left its box
-  parallel_for(P, default_threads(), [&](long long pb, long long pe) {
+  if (check) parallel_for(P, default_threads(), [&](long long pb, long long pe) {
     for (long long p = pb; p < pe && !left.load(std::memory_order_relaxed); ++p) {
       const int* pv = &held.patch_vertex[3 * (size_t)p];
       for (int a = 0; a < 3; ++a) {

@@ -102,7 +102,9 @@ struct ClipHold {
   const std::vector<int>& patch_tri;
   const std::vector<double>& patch_bary;
 };
+// check false: every piece is held wherever it now lies (the fit then spans whatever part of
+// the neighbouring boxes a piece reaches: continuous, less accurate the farther it reaches).
 std::optional<ClipResult> hold_clip(const std::vector<double>& X, const std::vector<int>& tv,
-                                    const LatticeSpec& lattice, const ClipHold& held);
+                                    const LatticeSpec& lattice, const ClipHold& held, bool check = true);
 
 }  // namespace sffd

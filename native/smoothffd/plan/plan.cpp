@@ -109,7 +109,7 @@ std::vector<int> Plan::* const kOutputTables[] = {
     &Plan::render_triangles};
 
 Plan build(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt,
-           const Triangulation* triangulation, const Plan* like, bool hold, Plan* previous, bool* kept,
+           const Triangulation* triangulation, const Plan* like, HoldPieces hold, Plan* previous, bool* kept,
            bool* gave_up) {
   check_input_mesh(mesh);
   if (opt.level < 1) throw std::invalid_argument("level: must be at least 1");
@@ -132,7 +132,9 @@ Plan build(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions&
   // that size); the rest surface, bounded so that no patch nor piece folds; the clip vertices
   // moved onto it.
   std::optional<ClipResult> held;
-  if (hold && like) held = hold_clip(X, in.tv, lattice, ClipHold{like->patch_vertex, like->patch_triangle, like->patch_bary});
+  if (hold != HoldPieces::none && like)
+    held = hold_clip(X, in.tv, lattice, ClipHold{like->patch_vertex, like->patch_triangle, like->patch_bary},
+                     hold == HoldPieces::checked);
   const ClipHint hint{like ? like->patch_vertex : in.tv, like ? like->patch_triangle : in.tv};
   ClipResult clip = held ? std::move(*held) : clip_to_knot_boxes(X, in.tv, lattice, like ? &hint : nullptr);
   plan.pieces_held = held.has_value();
@@ -219,15 +221,15 @@ Plan build(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions&
 
 Plan build_plan(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt,
                 const Triangulation* triangulation) {
-  return build(mesh, lattice, opt, triangulation, nullptr, false, nullptr, nullptr, nullptr);
+  return build(mesh, lattice, opt, triangulation, nullptr, HoldPieces::none, nullptr, nullptr, nullptr);
 }
 
 Plan build_plan_like(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt, const Plan& like) {
   const Triangulation tr{like.input_triangle_corner, like.input_triangle_face};
-  return build(mesh, lattice, opt, &tr, &like, false, nullptr, nullptr, nullptr);
+  return build(mesh, lattice, opt, &tr, &like, HoldPieces::none, nullptr, nullptr, nullptr);
 }
 
-bool follow_plan(Plan& plan, const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt, bool hold) {
+bool follow_plan(Plan& plan, const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& opt, HoldPieces hold) {
   if (opt.level != plan.level)
     throw std::invalid_argument("follow_plan: the options' level differs from the plan's");
   if ((int)(mesh.positions.size() / 3) != plan.input_vertices || (int)mesh.corner_vertex.size() != plan.input_corners)

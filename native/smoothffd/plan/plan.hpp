@@ -48,6 +48,13 @@ struct InputMesh {
 // package (smoothffd.MAX_LEVEL), its command line and the Blender add-on ask for.
 constexpr int kMaxLevel = 64;
 
+// How follow_plan treats the previous plan's pieces (hold_clip, plan/clip.hpp).
+enum class HoldPieces {
+  none,     // clip the new pose (with the previous pieces' triangles as a hint)
+  checked,  // keep them where each still lies in its knot box, else clip
+  always,   // keep them wherever they now lie
+};
+
 struct PlanOptions {
   int level = 10;                      // L: L^2 output triangles a patch, 1..kMaxLevel
   double sharp_angle_degrees = 1.0;    // corner normals further apart than this are split
@@ -247,13 +254,15 @@ Plan build_plan_like(const InputMesh& mesh, const LatticeSpec& lattice, const Pl
 // everything that depends on positions; nothing is cancelled there): then it is left empty (no
 // patches). Evaluators of the old plan must not be used after it.
 //
-// hold: keep the old plan's pieces (its sub-mesh) in the new pose where each still lies in
-// its knot box (hold_clip, plan/clip.hpp; pieces_held says whether they were), instead of
-// clipping again: the output topology is then kept unless a normal splits or joins, where a
-// new clipping changes it as soon as one face crosses a knot plane differently. The result is
-// then not build_plan_like's: it differs by a small part of the fit's error (docs/algorithm.md,
-// "Holding the pieces"). Where a piece has left its box the new pose is clipped as without hold.
+// hold: HoldPieces::checked keeps the old plan's pieces (its sub-mesh) in the new pose where
+// each still lies in its knot box (hold_clip, plan/clip.hpp; pieces_held says whether they
+// were), instead of clipping again: the output topology is then kept unless a normal splits
+// or joins, where a new clipping changes it as soon as one face crosses a knot plane
+// differently. The result is then not build_plan_like's: it differs by a small part of the
+// fit's error (docs/algorithm.md, "Holding the pieces"). Where a piece has left its box the
+// new pose is clipped as without hold. HoldPieces::always keeps them wherever they lie (a
+// render's motion-blur subframes, which need one topology, and where accuracy matters less).
 bool follow_plan(Plan& plan, const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions& options,
-                 bool hold = false);
+                 HoldPieces hold = HoldPieces::none);
 
 }  // namespace sffd

@@ -19,9 +19,10 @@ on: positions only on 4.5+, Blender's own normals as always on 3.4-4.4; no fit e
 what an artist sees. "background": as a script or farm evaluates frames (exact normals on
 4.5+ and the fit error bound each frame, an estimate costing more than the frame itself).
 AMPLITUDE scales the docs' character's angles (default 1, the wave: its arms swing up to 0.7
-rad; 0.02, a slight idle motion). The last lines say how many follows kept the output
-topology (values written only) and how many wrote a new one (some face crossing the
-lattice's knot planes differently than on the frame before).
+rad; 0.02, a slight idle motion). The last lines say how many follows held the pieces (in
+"window" mode, as during playback: plans.hold_pieces), how many kept the output topology
+(values written only) and how many wrote a new one (some face crossing the lattice's knot
+planes differently than on the frame before, or a piece held past its box).
 
 The docs' character (blender_scenes/character.py, 3 subdivisions: 5,760 quads) waves over
 frames 1-6; a 4x4x4 B-spline lattice boxes it (an imported one too, over its action's frames). Playback = scene.frame_set(f) for f = 1..6, then the
@@ -165,19 +166,20 @@ def main():
     times = {o.name: [] for o in objects}
     reads0 = dict(state.stack_counters)
     timings = []
-    follow = [0] * 5
+    follow = [0] * 6
     for r in range(ROUNDS):
         for obj in objects:
             show_only(obj, objects)
             was = (state.plans_built[0], state.plans_followed[0], state.plans_followed_kept[0],
-                   state.mesh_writes["topology"], state.mesh_writes["values"])
+                   state.mesh_writes["topology"], state.mesh_writes["values"],
+                   state.plans_followed_held[0])
             ms = play(obj, sc)
             times[obj.name] += ms[1:]
             if obj is sffd:
                 timings.append(pipeline.last_timing(sffd, mod))
                 now = (state.plans_built[0], state.plans_followed[0],
                        state.plans_followed_kept[0], state.mesh_writes["topology"],
-                       state.mesh_writes["values"])
+                       state.mesh_writes["values"], state.plans_followed_held[0])
                 follow = [f + n - w for f, n, w in zip(follow, now, was)]
     reads = {k: state.stack_counters[k] - reads0[k] for k in reads0}
     frames_sffd = ROUNDS * (len(FRAMES) - 1)
@@ -204,8 +206,8 @@ def main():
           f"{2 * (frames_sffd + ROUNDS)} frames shown (both Smooth FFD objects), forced "
           f"evaluations {reads['forced']}, deferred {reads['deferred']}")
     print(f"Smooth FFD (following) over {frames_sffd + ROUNDS} frames: plans built {follow[0]}, "
-          f"followed {follow[1]} (topology kept {follow[2]}), result mesh written: topology "
-          f"{follow[3]}, values only {follow[4]}")
+          f"followed {follow[1]} (pieces held {follow[5]}, topology kept {follow[2]}), result mesh "
+          f"written: topology {follow[3]}, values only {follow[4]}")
     m0, m1 = med[f"subsurf{closest}"], med["smooth_ffd"]
     print(f"fps Smooth FFD following / a new plan every frame: "
           f"{med['smooth_ffd_replan'] / m1:.2f}x")

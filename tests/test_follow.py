@@ -170,9 +170,13 @@ def test_cuda_follows_as_the_cpu():
     size = float(np.linalg.norm(np.ptp(mesh.positions, axis=0)))
     cpu = smoothffd.Deformer(mesh, lattice, level=LEVEL, device="cpu")
     gpu = smoothffd.Deformer(mesh, lattice, level=LEVEL, device="cuda")
-    for f in range(1, 4):
-        posed = bend(mesh, 0.15 * f)
-        assert cpu.follow(posed) == gpu.follow(posed)
+    # A new clipping on each pose, then the pieces held (checked: a small step; always: a
+    # large one).
+    steps = [(0.15, False), (0.3, False), (0.305, True), (0.45, "always")]
+    for angle, hold in steps:
+        posed = bend(mesh, angle)
+        assert cpu.follow(posed, hold=hold) == gpu.follow(posed, hold=hold)
+        assert cpu.plan.pieces_held == gpu.plan.pieces_held == bool(hold)
         a, b = cpu.deform(), gpu.deform()
         assert gpu.device == "cuda"
         assert np.array_equal(a.triangles, b.triangles)

@@ -146,9 +146,17 @@ def write_topology(mesh, res, source, materials):
     write_rest_positions(mesh, res)
     # UV maps and vertex groups: carry.py, after this.
     compat.set_all_faces_smooth(mesh)
+    write_sharp_edges(mesh, res, cleared=True)
+
+
+def write_sharp_edges(mesh, res, cleared=False):
+    """Marks the result's sharp edges on the mesh's edges (the mesh holds res's triangles).
+    cleared: its edges are new and all smooth (write_topology)."""
+    n = len(res.positions)
     sharp = res.sharp_edges is not None and len(res.sharp_edges) > 0
-    if sharp:   # else nothing to mark: the cleared mesh's new edges are all smooth
-        flags = result_arrays.edge_flags(compat.get_edges(mesh), res.sharp_edges, n)
+    if sharp or not cleared:   # a new mesh without sharp edges has nothing to mark
+        flags = result_arrays.edge_flags(compat.get_edges(mesh), res.sharp_edges, n) if sharp \
+            else np.zeros(len(mesh.edges), dtype=bool)
         compat.set_sharp_edges(mesh, flags)
         sharp = bool(flags.any())
     # 3.4-4.0: auto smooth makes Blender compute split normals for the whole dense mesh on

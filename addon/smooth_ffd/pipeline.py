@@ -84,12 +84,15 @@ def update_modifier(obj, mod, p):
             # A new plan may have the output topology of the last one (a source edited without
             # changing its faces' knot-plane cuts): then only positions and what lies on the
             # input move. A plan that followed a new pose keeping its topology kept this too
-            # (plans.follow). An adaptive frame may change it on any update.
-            output = inputs.digest(res.triangles, res.face_index, res.sharp_edges,
-                                   len(res.positions), got.source.material_index)
-            if tess.adaptive and output != st.output[1]:
+            # (plans.follow). An adaptive frame may change it on any update. The sharp edges
+            # apart: where only they change (a follow that held the pieces while an edge's
+            # normals split or joined) the mesh keeps its triangles and gets the new flags.
+            output = inputs.digest(res.triangles, res.face_index, len(res.positions),
+                                   got.source.material_index)
+            sharp = inputs.digest(res.sharp_edges)
+            if tess.adaptive and (output, sharp) != (st.output[1], st.sharp):
                 st.scratch = (None, {})   # write_normals' per-topology facts
-            st.output = (st.plan_key, output)
+            st.output, st.sharp = (st.plan_key, output), sharp
         times = write.write_result(obj, mod, ro, res, got.source, st.topology_token, exact,
                                    st, groups, fit_error)
         normals = times.pop("normals")

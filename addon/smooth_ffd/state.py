@@ -17,7 +17,8 @@ TOPOLOGY_KEY = "smooth_ffd_topology"    # result mesh -> output topology it hold
 POSE_KEY = "smooth_ffd_pose"            # result mesh -> plan (pose of the source) it was written for
 NORMALS_KEY = "smooth_ffd_normals"      # result mesh -> "exact" or "fast"
 EXTRAS_KEY = "smooth_ffd_extras"        # result mesh -> topology + carried UV maps / groups
-OUTPUT_KEY = "smooth_ffd_output"        # result mesh -> its triangles, faces, sharp edges
+OUTPUT_KEY = "smooth_ffd_output"        # result mesh -> its triangles, faces, vertex count
+SHARP_KEY = "smooth_ffd_sharp"          # result mesh -> its sharp edges
 POINTS_KEY = "smooth_ffd_points"        # points object -> the uid of its result object
 STACK_KEY = "smooth_ffd_stack"          # stack object -> the uid of its modifier's result object
 BAKE_KEY = "smooth_ffd_bake"            # "host", "frame" (objects) or "frames" (the host's group)
@@ -53,6 +54,7 @@ class ModifierState:
         self.result = None        # the last core Result: its arrays are reused (out=)
         self.scratch = (None, {})  # (topology_token, meshio.write_normals' per-topology facts)
         self.output = (None, None)  # (plan_key, digest of that plan's output topology)
+        self.sharp = None         # digest of the last result's sharp edges (write.write_result)
         self.outs = {}            # layout -> the last result in it (out=; LAYOUT may change)
         self.status_base = None   # last "OK ..." status as (head, tail) (statusline.set_ok)
         self.source_kind = None   # where st.source was read (stack_input: OWN, EVALUATED, CHAIN)
@@ -241,7 +243,7 @@ plans_followed_kept = [0]
 plans_followed_held = [0]   # follows that held the plan's pieces (plans.hold_pieces)
 # How the result mesh was written: its topology rebuilt, or only its values (positions,
 # normals, ...) over the topology it had.
-mesh_writes = {"topology": 0, "values": 0}
+mesh_writes = {"topology": 0, "values": 0, "sharp": 0}
 # How the core was asked: with normals (exact normals: render, Apply, Exact Normals, 4.5+) or
 # positions only (viewport on 3.4-4.4). Apart from `counters`, whose exact contents tests compare.
 deform_calls = {"normals": 0, "positions_only": 0}

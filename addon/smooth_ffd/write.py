@@ -43,6 +43,7 @@ def write_result(obj, mod, ro, res, source, topology_token, exact, st, groups=Tr
     if not rebuild and mode == "fast" and mesh.get(state.NORMALS_KEY) == "fast" \
             and mesh.get(state.TOPOLOGY_KEY) == topology_token \
             and mesh.get(state.EXTRAS_KEY) == extras_token and objects.sends_points(mod) \
+            and mesh.get(state.SHARP_KEY) == st.sharp \
             and ro.users == 1 and meshio.FIT_ERROR_ATTRIBUTE not in mesh.attributes:
         # Only the positions change: before 3.6 a write to the result mesh makes the
         # depsgraph copy all of it again, the points object is vertices only (nodegroup).
@@ -65,9 +66,14 @@ def write_result(obj, mod, ro, res, source, topology_token, exact, st, groups=Tr
     if rebuild:
         meshio.write_topology(mesh, res, source, _materials(obj))
         mesh[state.OUTPUT_KEY] = st.output[1]
+        mesh[state.SHARP_KEY] = st.sharp
         state.mesh_writes["topology"] += 1
     else:
         meshio.write_positions(mesh, res)
+        if mesh.get(state.SHARP_KEY) != st.sharp:   # the same triangles, other sharp edges
+            meshio.write_sharp_edges(mesh, res)
+            mesh[state.SHARP_KEY] = st.sharp
+            state.mesh_writes["sharp"] += 1
         if mesh.get(state.TOPOLOGY_KEY) != topology_token or mesh.get(state.POSE_KEY) != pose:
             # Another plan or pose with the same output: the points on the input moved with it.
             meshio.write_rest_positions(mesh, res)

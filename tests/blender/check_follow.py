@@ -35,7 +35,8 @@ plan to the new pose (smoothffd.Deformer.follow) instead of planning again.
   without Smooth FFD), and the source mesh is never written;
 - the pieces held (plans.hold_pieces): the character in a slight idle motion played in the
   viewport follows holding its pieces as the core's Deformer.follow(hold=True) does, and
-  writes no topology where they hold; the waving character rendered with motion blur has one
+  writes no topology where they hold; the character waving in a lattice that boxes the whole
+  wave holds them on every frame, where only the sharp edges change: written alone; the waving character rendered with motion blur has one
   topology over the shutter (its subframes evaluated by hand after render_pre, and a real
   Cycles render of frame 2), where without the shutter known the subframes' differ.
 """
@@ -48,8 +49,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b --python does not
 import sffd_testlib as T  # noqa: E402
-from sffd_testlib import smooth_ffd, core, handlers, latticeio, live, meshio, objects, pipeline, \
-    state  # noqa: E402
+from sffd_testlib import smooth_ffd, compat, core, handlers, latticeio, live, meshio, objects, \
+    pipeline, result_arrays, state  # noqa: E402
 
 sys.path.insert(0, os.path.join(T.ROOT, "blender_scenes"))
 import character as C  # noqa: E402
@@ -78,7 +79,7 @@ def triangulate(me):
 def counters():
     return dict(built=state.plans_built[0], followed=state.plans_followed[0],
                 kept=state.plans_followed_kept[0], held=state.plans_followed_held[0],
-                topology=state.mesh_writes["topology"],
+                topology=state.mesh_writes["topology"], sharp=state.mesh_writes["sharp"],
                 values=state.mesh_writes["values"])
 
 
@@ -116,6 +117,7 @@ class Reference:
         else:
             kept = self.deformer.follow(core.make_mesh(src), lattice=lattice, hold=self.hold)
         res = self.deformer.deform(lattice, normals=True, layout="corners")
+        self.sharp_edges = np.asarray(res.sharp_edges).reshape(-1, 2)
         return np.asarray(res.positions, np.float64), np.asarray(res.triangles), kept
 
 
@@ -393,6 +395,67 @@ def test_imported_rig():
     play("imported rig", fox, twin, lat, mod, fresh=True)
 
 
+def sharp_flags(me):
+    """The result mesh's sharp-edge flags, per mesh edge."""
+    if compat.HAS_SHARP_EDGE_ATTRIBUTE:
+        attr = me.attributes.get("sharp_edge")
+        flags = np.zeros(len(me.edges), dtype=bool)
+        if attr is not None:
+            attr.data.foreach_get("value", flags)
+        return flags
+    flags = np.zeros(len(me.edges), dtype=bool)
+    me.edges.foreach_get("use_edge_sharp", flags)
+    return flags
+
+
+SUBDIVISIONS = 3
+
+
+def held_wave():
+    """(f) The character waving in a lattice that boxes the whole wave (bigger knot spans: the
+    pieces hold on every frame), played with live.playing() true: its sharp ends change on
+    most frames (normals that split or join as the pose changes), the triangles do not, so the
+    result mesh keeps its topology and gets the new sharp edges only, those of the core's
+    Deformer following the same poses with hold=True."""
+    T.clear()
+    sc = bpy.context.scene
+    rig = C.armature("rig")
+    a = C.character_object(SUBDIVISIONS, "A", rig)
+    twin = C.character_object(SUBDIVISIONS, "B", rig)
+    lat = C.lattice_around([a], frames=(FRAMES[0], FRAMES[-1]))
+    mod = smooth_ffd.add_smooth_ffd(a, lat, viewport_level=LEVEL, render_level=LEVEL, backend="cpu")
+    size = T.lattice_size(a, lat)
+    ref = Reference(a, twin, lat, hold=True)
+    playing = live.playing
+    live.playing = lambda: True
+    try:
+        sc.frame_set(FRAMES[0])
+        T.update()
+        ref.frame()
+        start = counters()
+        for f in FRAMES[1:]:
+            before = counters()
+            sc.frame_set(f)
+            d = delta(before)
+            exp, exp_tris, kept = ref.frame()
+            me = result_mesh(a, mod)
+            got, tris = T.positions(me).astype(np.float64), T.triangles(me)
+            err = err_of(got, exp, size)
+            want = result_arrays.edge_flags(compat.get_edges(me), ref.sharp_edges, len(got))
+            T.check(f"held wave: frame {f}: the core's positions, triangles and sharp edges",
+                    err <= TOL and np.array_equal(tris, exp_tris)
+                    and np.array_equal(sharp_flags(me), want),
+                    f"err {err:.1e}, {int(sharp_flags(me).sum())} vs {int(want.sum())} sharp edges")
+            T.check(f"held wave: frame {f}: pieces held, no topology write",
+                    d["held"] == 1 and d["topology"] == 0 and d["values"] == 1, str(d))
+        d = delta(start)
+        print(f"held wave: {d['held']} of {d['followed']} follows held the pieces, {d['kept']} kept "
+              f"the topology, {d['sharp']} wrote new sharp edges only")
+        T.check("held wave: some frames changed only the sharp edges", d["sharp"] >= 1, str(d))
+    finally:
+        live.playing = playing
+
+
 def test_held_pieces():
     """(d) Played in the viewport (live.playing() made true: a background session plays
     nothing), the docs' character in a slight idle motion follows holding its pieces: every
@@ -440,11 +503,12 @@ def test_held_pieces():
             held += d["held"]
             kept_frames += d["kept"]
             last_tris = tris
-        print(f"held pieces: playback held the pieces on {held} of {len(FRAMES) - 1} follows, "
+        print(f"held pieces: playback held the pieces on {held} of {len(FRAMES) - 1} follows; "
               f"kept the topology on {kept_frames}")
         T.check("held pieces: playback holds the pieces on most frames", held >= 3, str(held))
     finally:
         live.playing = playing
+    held_wave()
     # (e) motion blur, the character waving
     T.clear()
     rig = C.armature("rig")

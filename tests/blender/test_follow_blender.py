@@ -17,3 +17,4 @@ def test_plans_follow_the_pose(runner, blender_env):  # noqa: F811
     # and a motion-blur render held the pieces.
     assert out.count(" 5 follows, ") == 6, _summary(out)
     assert "held pieces: playback held the pieces on 5 of 5 follows" in out, _summary(out)
+    assert "held wave: 5 of 5 follows held the pieces" in out, _summary(out)

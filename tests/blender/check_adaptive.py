@@ -279,40 +279,15 @@ def test_motion_blur():
     T.check("after the render: no shutter hold", T.objects.state_of(obj, mod).shutter is None)
     # A real Cycles render of frame 2 with motion blur: every evaluation the render makes
     # (the frame and its shutter's subframes) shows the same topology.
-    cam = T.link(bpy.data.objects.new("cam", bpy.data.cameras.new("cam")))
-    cam.location, cam.rotation_euler = (0, -6, 0), (np.pi / 2, 0, 0)
-    sc.camera = cam
-    sc.render.engine = 'CYCLES'
-    sc.cycles.samples = 1
-    sc.cycles.use_denoising = False
-    sc.cycles.device = 'CPU'
-    sc.render.resolution_x = sc.render.resolution_y = 16
-    sc.render.resolution_percentage = 100
-    seen, texts, rendering = [], [], [False]
+    T.tiny_cycles((0, -6, 0))
+    seen, texts = [], []
 
-    def started(scene, *_):   # after the add-on's render_pre (the shutter held)
-        rendering[0] = True
+    def probe(scene):     # the render's evaluations of the frame and its subframes
+        ro = T.objects.result_object(obj, mod, create=False)
+        seen.append((round(scene.frame_current + scene.frame_subframe, 3), len(ro.data.polygons)))
+        texts.append(status(mod))
 
-    def ended(scene, *_):
-        rendering[0] = False
-
-    def probe(scene, *_):     # the render's evaluations of the frame and its subframes
-        if rendering[0]:
-            ro = T.objects.result_object(obj, mod, create=False)
-            seen.append((round(scene.frame_current + scene.frame_subframe, 3),
-                         len(ro.data.polygons)))
-            texts.append(status(mod))
-
-    hooks = ((bpy.app.handlers.render_pre, started), (bpy.app.handlers.render_post, ended),
-             (bpy.app.handlers.frame_change_post, probe))
-    for handlers, fn in hooks:
-        handlers.append(fn)
-    try:
-        sc.frame_set(2)
-        bpy.ops.render.render(write_still=False)
-    finally:
-        for handlers, fn in hooks:
-            handlers.remove(fn)
+    T.render_evaluations(2, probe)
     times = sorted({t for t, _ in seen})
     T.check("Cycles render with motion blur: one topology on every subframe it evaluates",
             len(times) >= 2 and len({n for _, n in seen}) == 1

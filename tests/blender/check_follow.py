@@ -408,21 +408,21 @@ def sharp_flags(me):
     return flags
 
 
-SUBDIVISIONS = 3
-
-
-def held_wave():
-    """(f) The character waving in a lattice that boxes the whole wave (bigger knot spans: the
-    pieces hold on every frame), played with live.playing() true: its sharp ends change on
-    most frames (normals that split or join as the pose changes), the triangles do not, so the
-    result mesh keeps its topology and gets the new sharp edges only, those of the core's
-    Deformer following the same poses with hold=True."""
+def play_holding(name, amplitude, subdivisions, boxed, check_frame):
+    """The docs' character (`subdivisions`, its armature's angles times `amplitude`) in a
+    lattice around it (boxed: around its whole animation) and its twin, played over FRAMES
+    with live.playing() true (the follows hold the pieces, plans.hold_pieces; a background
+    session plays nothing), the core's Deformer following the same poses with hold=True.
+    check_frame(f, d, ref, kept, me, before) on each later frame: d the counters' change, kept
+    the core's, me the result mesh, before its triangles on the frame before (its positions
+    and triangles are checked against the core's here). Returns the counters' change over the
+    follows."""
     T.clear()
     sc = bpy.context.scene
-    rig = C.armature("rig")
-    a = C.character_object(SUBDIVISIONS, "A", rig)
-    twin = C.character_object(SUBDIVISIONS, "B", rig)
-    lat = C.lattice_around([a], frames=(FRAMES[0], FRAMES[-1]))
+    rig = C.armature(name, amplitude=amplitude)
+    a = C.character_object(subdivisions, "A", rig)
+    twin = C.character_object(subdivisions, "B", rig)
+    lat = C.lattice_around([a], frames=(FRAMES[0], FRAMES[-1])) if boxed else C.lattice_around([a])
     mod = smooth_ffd.add_smooth_ffd(a, lat, viewport_level=LEVEL, render_level=LEVEL, backend="cpu")
     size = T.lattice_size(a, lat)
     ref = Reference(a, twin, lat, hold=True)
@@ -433,82 +433,63 @@ def held_wave():
         T.update()
         ref.frame()
         start = counters()
-        for f in FRAMES[1:]:
-            before = counters()
-            sc.frame_set(f)
-            d = delta(before)
-            exp, exp_tris, kept = ref.frame()
-            me = result_mesh(a, mod)
-            got, tris = T.positions(me).astype(np.float64), T.triangles(me)
-            err = err_of(got, exp, size)
-            want = result_arrays.edge_flags(compat.get_edges(me), ref.sharp_edges, len(got))
-            T.check(f"held wave: frame {f}: the core's positions, triangles and sharp edges",
-                    err <= TOL and np.array_equal(tris, exp_tris)
-                    and np.array_equal(sharp_flags(me), want),
-                    f"err {err:.1e}, {int(sharp_flags(me).sum())} vs {int(want.sum())} sharp edges")
-            T.check(f"held wave: frame {f}: pieces held, no topology write",
-                    d["held"] == 1 and d["topology"] == 0 and d["values"] == 1, str(d))
-        d = delta(start)
-        print(f"held wave: {d['held']} of {d['followed']} follows held the pieces, {d['kept']} kept "
-              f"the topology, {d['sharp']} wrote new sharp edges only")
-        T.check("held wave: some frames changed only the sharp edges", d["sharp"] >= 1, str(d))
-    finally:
-        live.playing = playing
-
-
-def test_held_pieces():
-    """(d) Played in the viewport (live.playing() made true: a background session plays
-    nothing), the docs' character in a slight idle motion follows holding its pieces: every
-    frame's positions and triangles are those of the core's Deformer following the same poses
-    with hold=True, it holds on the frames the core holds (most of them), and those that keep
-    the topology write none. (e) With motion blur, the character waving: frame 2's shutter
-    subframes (1.75, 2, 2.25) rendered without render_pre get other topologies; after
-    render_pre, the frame clips and its subframes hold those pieces: one topology, said in the
-    status; a real Cycles render of frame 2 with motion blur shows one topology on every
-    evaluation it makes."""
-    T.clear()
-    sc = bpy.context.scene
-    rig = C.armature("idle", amplitude=0.02)
-    a = C.character_object(1, "A", rig)
-    twin = C.character_object(1, "B", rig)
-    lat = C.lattice_around([a])
-    mod = smooth_ffd.add_smooth_ffd(a, lat, viewport_level=LEVEL, render_level=LEVEL, backend="cpu")
-    size = T.lattice_size(a, lat)
-    ref = Reference(a, twin, lat, hold=True)
-    playing = live.playing
-    live.playing = lambda: True
-    try:
-        sc.frame_set(FRAMES[0])
-        T.update()
-        ref.frame()
-        held = kept_frames = 0
         last_tris = T.triangles(result_mesh(a, mod))
         for f in FRAMES[1:]:
             before = counters()
             sc.frame_set(f)
             d = delta(before)
             exp, exp_tris, kept = ref.frame()
-            core_held = bool(ref.deformer.plan.pieces_held)
             me = result_mesh(a, mod)
             got, tris = T.positions(me).astype(np.float64), T.triangles(me)
             err = err_of(got, exp, size)
-            T.check(f"held pieces: frame {f}: the core's Deformer following with hold=True",
+            T.check(f"{name}: frame {f}: the core's Deformer following with hold=True",
                     err <= TOL and np.array_equal(tris, exp_tris),
                     f"err {err:.1e} of the lattice size, {len(got)} vs {len(exp)} vertices")
-            T.check(f"held pieces: frame {f}: followed, held as the core held",
-                    d["built"] == 0 and d["followed"] == 1 and d["held"] == int(core_held)
-                    and d["kept"] == int(kept) and (d["topology"] == 0 if kept else True)
-                    and (np.array_equal(tris, last_tris) if kept else True),
-                    f"{d}, core held {core_held}, kept {kept}")
-            held += d["held"]
-            kept_frames += d["kept"]
+            check_frame(f, d, ref, kept, me, last_tris)
             last_tris = tris
-        print(f"held pieces: playback held the pieces on {held} of {len(FRAMES) - 1} follows; "
-              f"kept the topology on {kept_frames}")
-        T.check("held pieces: playback holds the pieces on most frames", held >= 3, str(held))
+        return delta(start)
     finally:
         live.playing = playing
-    held_wave()
+
+
+def test_held_pieces():
+    """(d) Played in the viewport, the docs' character in a slight idle motion follows holding
+    its pieces: every frame's positions and triangles are those of the core's Deformer
+    following the same poses with hold=True, it holds on the frames the core holds (most of
+    them), and those that keep the topology write none. (f) The character (5,760 quads) waving
+    in a lattice that boxes the whole wave (bigger knot spans: the pieces hold on every frame):
+    its sharp ends change as normals split or join with the pose, its triangles do not, so the
+    result mesh keeps its topology and gets the new sharp edges only, the core's. (e) With
+    motion blur, the character waving: frame 2's shutter subframes (1.75, 2, 2.25) rendered
+    without render_pre get other topologies; after render_pre, the frame clips and its
+    subframes hold those pieces: one topology, said in the status; a real Cycles render of
+    frame 2 with motion blur shows one topology on every evaluation it makes."""
+    sc = bpy.context.scene
+
+    def idle(f, d, ref, kept, me, before):
+        core_held = bool(ref.deformer.plan.pieces_held)
+        T.check(f"held pieces: frame {f}: followed, held as the core held",
+                d["built"] == 0 and d["followed"] == 1 and d["held"] == int(core_held)
+                and d["kept"] == int(kept) and (d["topology"] == 0 if kept else True)
+                and (np.array_equal(T.triangles(me), before) if kept else True),
+                f"{d}, core held {core_held}, kept {kept}")
+
+    d = play_holding("held pieces", 0.02, 1, False, idle)
+    print(f"held pieces: playback held the pieces on {d['held']} of {len(FRAMES) - 1} follows; "
+          f"kept the topology on {d['kept']}")
+    T.check("held pieces: playback holds the pieces on most frames", d["held"] >= 3, str(d))
+
+    def wave(f, d, ref, kept, me, before):
+        want = result_arrays.edge_flags(compat.get_edges(me), ref.sharp_edges, len(me.vertices))
+        T.check(f"held wave: frame {f}: the core's sharp edges, pieces held, no topology write",
+                np.array_equal(sharp_flags(me), want) and d["held"] == 1 and d["topology"] == 0
+                and d["values"] == 1,
+                f"{int(sharp_flags(me).sum())} vs {int(want.sum())} sharp edges, {d}")
+
+    d = play_holding("held wave", 1.0, 3, True, wave)
+    print(f"held wave: {d['held']} of {d['followed']} follows held the pieces, {d['kept']} kept "
+          f"the topology, {d['sharp']} wrote new sharp edges only")
+    T.check("held wave: some frames changed only the sharp edges", d["sharp"] >= 1, str(d))
     # (e) motion blur, the character waving
     T.clear()
     rig = C.armature("rig")
@@ -547,39 +528,15 @@ def test_held_pieces():
         handlers.on_render_done(sc)
     T.check("after the render: no shutter known", state.flags.render_shutter is None)
     # A real Cycles render of frame 2 with motion blur.
-    cam = T.link(bpy.data.objects.new("cam", bpy.data.cameras.new("cam")))
-    cam.location, cam.rotation_euler = (0, -8, 1), (np.pi / 2, 0, 0)
-    sc.camera = cam
-    sc.render.engine = 'CYCLES'
-    sc.cycles.samples = 1
-    sc.cycles.use_denoising = False
-    sc.cycles.device = 'CPU'
-    sc.render.resolution_x = sc.render.resolution_y = 16
-    sc.render.resolution_percentage = 100
-    seen, texts, rendering = [], [], [False]
+    T.tiny_cycles()
+    seen, texts = [], []
 
-    def started(scene, *_):   # after the add-on's render_pre (the shutter known)
-        rendering[0] = True
+    def probe(scene):     # the render's evaluations of the frame and its subframes
+        seen.append((round(scene.frame_current + scene.frame_subframe, 3),
+                     len(result_mesh(a, mod).polygons)))
+        texts.append(smooth_ffd.status(mod))
 
-    def ended(scene, *_):
-        rendering[0] = False
-
-    def probe(scene, *_):     # the render's evaluations of the frame and its subframes
-        if rendering[0]:
-            seen.append((round(scene.frame_current + scene.frame_subframe, 3),
-                         len(result_mesh(a, mod).polygons)))
-            texts.append(smooth_ffd.status(mod))
-
-    hooks = ((bpy.app.handlers.render_pre, started), (bpy.app.handlers.render_post, ended),
-             (bpy.app.handlers.frame_change_post, probe))
-    for hs, fn in hooks:
-        hs.append(fn)
-    try:
-        sc.frame_set(2)
-        bpy.ops.render.render(write_still=False)
-    finally:
-        for hs, fn in hooks:
-            hs.remove(fn)
+    T.render_evaluations(2, probe)
     times = sorted({t for t, _ in seen})
     T.check("Cycles render with motion blur: one topology on every subframe it evaluates",
             len(times) >= 2 and len({n for _, n in seen}) == 1

@@ -248,16 +248,7 @@ def test_other_scene():
 def render_setup(obj, lat, ref):
     sc = bpy.context.scene
     ref.hide_render = True
-    cam = T.link(bpy.data.objects.new("cam", bpy.data.cameras.new("cam")))
-    cam.location = (0, -5, 0)
-    cam.rotation_euler = (np.pi / 2, 0, 0)
-    sc.camera = cam
-    sc.render.engine = 'CYCLES'
-    sc.cycles.samples = 1
-    sc.cycles.use_denoising = False
-    sc.cycles.device = 'CPU'
-    sc.render.resolution_x = sc.render.resolution_y = 16
-    sc.render.resolution_percentage = 100
+    T.tiny_cycles((0, -5, 0))
     sc.render.filepath = os.path.join(tempfile.mkdtemp(), "frame.png")
     p = lat.data.points[13]
     p.co_deform = (0.0, 0.0, 0.0)

@@ -550,13 +550,7 @@ def test_render_stack():
     with_lattice(ref, lat)
     ref.hide_render = True
     sc = bpy.context.scene
-    cam = T.link(bpy.data.objects.new("cam", bpy.data.cameras.new("cam")))
-    cam.location, cam.rotation_euler = (0, -8, 1), (np.pi / 2, 0, 0)
-    sc.camera = cam
-    sc.render.engine = 'CYCLES'
-    sc.cycles.samples = 1
-    sc.cycles.use_denoising = False
-    sc.render.resolution_x = sc.render.resolution_y = 16
+    T.tiny_cycles()
     T.update()
     seen = {}
     ro = T.objects.result_object(a, mod, create=False)

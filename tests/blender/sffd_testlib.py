@@ -103,6 +103,50 @@ def link(obj):
     return obj
 
 
+def tiny_cycles(location=(0, -8, 1)):
+    """The scene set for a 16 x 16 Cycles render on the CPU (one sample, no denoising) through
+    a new camera at `location` looking along +y. Returns the camera."""
+    sc = bpy.context.scene
+    cam = link(bpy.data.objects.new("cam", bpy.data.cameras.new("cam")))
+    cam.location, cam.rotation_euler = location, (math.pi / 2, 0, 0)
+    sc.camera = cam
+    sc.render.engine = 'CYCLES'
+    sc.cycles.samples = 1
+    sc.cycles.use_denoising = False
+    sc.cycles.device = 'CPU'
+    sc.render.resolution_x = sc.render.resolution_y = 16
+    sc.render.resolution_percentage = 100
+    return cam
+
+
+def render_evaluations(frame, probe):
+    """Renders `frame` (not written) and calls probe(scene) on every frame change the render
+    makes after render_pre (the frame and its motion-blur subframes): after the add-on's own
+    render_pre handler, which comes first."""
+    rendering = [False]
+
+    def started(scene, *_):
+        rendering[0] = True
+
+    def ended(scene, *_):
+        rendering[0] = False
+
+    def changed(scene, *_):
+        if rendering[0]:
+            probe(scene)
+
+    hooks = ((bpy.app.handlers.render_pre, started), (bpy.app.handlers.render_post, ended),
+             (bpy.app.handlers.frame_change_post, changed))
+    for handlers, fn in hooks:
+        handlers.append(fn)
+    try:
+        bpy.context.scene.frame_set(frame)
+        bpy.ops.render.render(write_still=False)
+    finally:
+        for handlers, fn in hooks:
+            handlers.remove(fn)
+
+
 def make_mesh(kind, name="src"):
     """Meshes Blender makes: suzanne, uvsphere, cylinder (sharp rim edges), cube."""
     if kind == "suzanne":

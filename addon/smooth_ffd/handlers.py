@@ -338,8 +338,8 @@ def on_undo_redo(scene, *_args):
 @persistent
 def on_render_pre(scene, *_args):
     state.flags.rendering = True
-    # With motion blur, a moving input's subframes hold the pieces the frame's first evaluation
-    # cut (plans.hold_pieces): one output topology over the shutter.
+    # With motion blur, a moving input's shutter subframes hold the pieces the rendered frame
+    # is cut into (plans.hold_pieces): one output topology over the shutter.
     state.flags.render_shutter = holds.shutter(scene) + (scene.frame_current + scene.frame_subframe,) \
         if holds.motion_blur(scene) else None
     # With motion blur, adaptive tessellations get one topology over the frame's shutter

@@ -155,8 +155,7 @@ def write_sharp_edges(mesh, res, cleared=False):
     n = len(res.positions)
     sharp = res.sharp_edges is not None and len(res.sharp_edges) > 0
     if sharp or not cleared:   # a new mesh without sharp edges has nothing to mark
-        flags = result_arrays.edge_flags(compat.get_edges(mesh), res.sharp_edges, n) if sharp \
-            else np.zeros(len(mesh.edges), dtype=bool)
+        flags = result_arrays.edge_flags(compat.get_edges(mesh), res.sharp_edges, n)
         compat.set_sharp_edges(mesh, flags)
         sharp = bool(flags.any())
     # 3.4-4.0: auto smooth makes Blender compute split normals for the whole dense mesh on

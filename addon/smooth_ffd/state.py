@@ -70,8 +70,8 @@ class ModifierState:
         self.shutter = None       # ((from, to), plan token, setting, counts) held over a render's
         #                           motion-blur shutter (holds.py)
         self.hold_cache = {}      # holds.lookup: a saved hold's counts as arrays
-        self.pieces_for = None    # the render shutter whose first evaluation clipped the plan's
-        #                           pieces (plans.hold_pieces: its other subframes hold them)
+        self.pieces_for = None    # the render shutter in which the plan's pieces were last cut
+        #                           (plans.hold_pieces: its other subframes hold them)
         self.pieces_note = None   # what holding the pieces did on the last update, for the status
 
 

@@ -84,3 +84,15 @@ TEST(AxisBasis, RejectsBadInput) {
   EXPECT_THROW(AxisBasis::bspline(2, {0, 0, 0, 1, 0.5, 1}, 3), std::invalid_argument);
   EXPECT_THROW(parse_blender_interp("CUBIC"), std::invalid_argument);
 }
+
+TEST(AxisBasis, FindPieceWithAGuessIsTheSearch) {
+  // Whatever the guess (right, a neighbour, far off, out of range), the piece is the search's,
+  // on and within rounding of the planes included.
+  const std::vector<double> U = {0, 0, 0, 0.25, 0.5, 0.5, 0.75, 1, 1, 1};
+  const AxisBasis b = AxisBasis::bspline(2, U, 7);
+  const int n = (int)b.pieces().size();
+  std::vector<double> s = {-1, 0, 1e-12, -1e-12, 0.1, 0.25, 0.25 - 1e-13, 0.5, 0.6, 0.75, 1 - 1e-12, 1, 1 + 1e-12, 2,
+                           std::nan("")};
+  for (double x : s)
+    for (int g = -1; g <= n; ++g) EXPECT_EQ(b.find_piece(x, g), b.find_piece(x)) << x << " guess " << g;
+}

@@ -48,6 +48,9 @@ class AxisBasis {
   // outer boundary of the polynomial range (within rounding), which takes the inner piece (so
   // the Jacobian on the faces of a B-spline box or a Blender lattice is the inner one).
   int find_piece(double s) const;
+  // The same, tried first at `guess` (a piece index, or -1): where the span lies in that
+  // piece (a point that moved a little since it was last located) no search.
+  int find_piece(double s, int guess) const;
 
   // Weights and d/ds of the terms of piece `pi` at s (arrays of kMaxTerms).
   void weights(int pi, double s, double* w, double* dw) const;

@@ -165,8 +165,10 @@ Plan build(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions&
   // 4. Samples, their lattice pieces, the fitting matrix and the centre rows.
   {
     const FitTables fit = build_fit_tables(std::max(3, lattice.degree_sum()));
-    const std::vector<double> sample_exact = build_samples(plan, fit, sub_vertices);
-    locate_samples(plan, lattice, sample_exact);
+    // With held pieces the samples are the same points of the same sub-mesh, moved a little:
+    // each is looked for first in the piece it had.
+    const std::vector<double> sample_exact =
+        build_samples(plan, fit, sub_vertices, &lattice, held && like ? &like->sample_piece : nullptr, opt.centre_rows);
     timer.lap("samples");
     if (opt.centre_rows) build_centre_rows(plan, lattice, fit, sample_exact);
   }

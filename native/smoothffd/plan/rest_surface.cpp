@@ -98,6 +98,13 @@ int cubic_index(int i, int j, int k) {
   return -1;
 }
 
+// Whether N turns more than acos(kFoldCos) from m: N.m < kFoldCos |N| |m|, from the squared
+// lengths (no square roots: the fold test runs on every face at every pose).
+inline bool turns_past_fold(double dot, double n2, double m2) {
+  static_assert(kFoldCos > 0, "the squared comparison needs a positive bound");
+  return dot < 0 || dot * dot < kFoldCos * kFoldCos * n2 * m2;
+}
+
 // The fold test's grid: 15 barycentric points (4 steps a side) with the 6 quadratic Bernstein
 // values at each, in the order of kQuad.
 struct FoldGrid {
@@ -188,7 +195,7 @@ bool rest_patch_folds(const double cp[10][3], const double rn[9]) {
     w[i] = cp[2][i] - cp[0][i];
   }
   const double c[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
-  const double flat = std::sqrt(dot3(c, c));  // |N| of the flat triangle (tangents u, w)
+  const double flat2 = dot3(c, c);  // |N|^2 of the flat triangle (tangents u, w)
   for (int n = 0; n < FoldGrid::kPoints; ++n) {
     const double* b = g.b[n];
     double a1[3] = {0, 0, 0}, a2[3] = {0, 0, 0}, m[3];
@@ -199,9 +206,9 @@ bool rest_patch_folds(const double cp[10][3], const double rn[9]) {
       }
     const double N[3] = {a1[1] * a2[2] - a1[2] * a2[1], a1[2] * a2[0] - a1[0] * a2[2], a1[0] * a2[1] - a1[1] * a2[0]};
     for (int k = 0; k < 3; ++k) m[k] = b[0] * rn[k] + b[1] * rn[3 + k] + b[2] * rn[6 + k];
-    const double ln = std::sqrt(dot3(N, N)), lm = std::sqrt(dot3(m, m));
-    if (!(lm > 0)) continue;
-    if (dot3(N, m) < kFoldCos * ln * lm || ln < kCollapse * flat) return true;
+    const double ln2 = dot3(N, N), lm2 = dot3(m, m);
+    if (!(lm2 > 0)) continue;
+    if (turns_past_fold(dot3(N, m), ln2, lm2) || ln2 < kCollapse * kCollapse * flat2) return true;
   }
   // The flat triangles a tessellation of level 1 to kLevels puts through the patch (what
   // the output is made of) against the normals at their centres, with the same margin.
@@ -221,8 +228,8 @@ bool rest_patch_folds(const double cp[10][3], const double rn[9]) {
     }
     const double N[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
     for (int k = 0; k < 3; ++k) m[k] = t.b[0] * rn[k] + t.b[1] * rn[3 + k] + t.b[2] * rn[6 + k];
-    const double ln = std::sqrt(dot3(N, N)), lm = std::sqrt(dot3(m, m));
-    if (lm > 0 && dot3(N, m) < kFoldCos * ln * lm) return true;
+    const double lm2 = dot3(m, m);
+    if (lm2 > 0 && turns_past_fold(dot3(N, m), dot3(N, N), lm2)) return true;
   }
   return false;
 }
@@ -242,8 +249,8 @@ bool piece_folds(const double cp[10][3], const double rn[9], const double* b) {
     w[i] = x[2][i] - x[0][i];
   }
   const double N[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
-  const double ln = std::sqrt(dot3(N, N)), lm = std::sqrt(dot3(m, m));
-  return lm > 0 && dot3(N, m) < kFoldCos * ln * lm;
+  const double lm2 = dot3(m, m);
+  return lm2 > 0 && turns_past_fold(dot3(N, m), dot3(N, N), lm2);
 }
 
 }  // namespace

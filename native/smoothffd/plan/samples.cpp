@@ -13,6 +13,25 @@ namespace {
 
 uint32_t pack_pieces(const int p[3]) { return uint32_t(p[0]) | uint32_t(p[1]) << 10 | uint32_t(p[2]) << 20; }
 
+constexpr uint32_t kNoHint = ~0u;
+
+// Sample s's pieces (and, with local, its local coordinates) from its position: the double
+// one with local, else the float one the evaluators read (plan.sample_position, already
+// written). hint: a packed guess of its pieces (kNoHint: none).
+void locate_sample(Plan& plan, const LatticeSpec& lattice, long long s, const double* exact, bool local, uint32_t hint) {
+  double pos[3], prm[3];
+  int pc[3];
+  for (int i = 0; i < 3; ++i) pos[i] = local ? exact[i] : plan.sample_position[3 * s + i];
+  lattice.to_param(pos, prm);
+  for (int a = 0; a < 3; ++a) pc[a] = lattice.axes[a].find_piece(prm[a], hint == kNoHint ? -1 : int((hint >> (10 * a)) & 1023u));
+  plan.sample_piece[s] = pack_pieces(pc);
+  if (local)
+    for (int a = 0; a < 3; ++a) {
+      const AxisPiece& piece = lattice.axes[a].pieces()[pc[a]];
+      plan.sample_local[3 * s + a] = piece.degree == 0 ? 0.0f : (float)((prm[a] - piece.origin) / piece.scale);
+    }
+}
+
 }  // namespace
 
 std::vector<int> edge_sample_numerators(int n) {
@@ -22,7 +41,8 @@ std::vector<int> edge_sample_numerators(int n) {
   return num;
 }
 
-std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVertices& sub) {
+std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVertices& sub, const LatticeSpec* lattice,
+                                  const std::vector<uint32_t>* piece_hint, bool keep_exact) {
   const int n = fit.n, K = fit.columns, N3 = 3 * n;
   const int SV = (int)sub.weight.size(), E = (int)(plan.edge_vertex.size() / 2), P = (int)(plan.patch_vertex.size() / 3);
   const std::vector<double>& moved = sub.position;
@@ -32,15 +52,25 @@ std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVer
   auto edge_index = [&](int q) { return int(std::lower_bound(edge_num.begin(), edge_num.end(), q) - edge_num.begin()); };
   const long long S = (long long)SV + (long long)E * ES + (long long)P * IS;
   if (S > 2000000000LL) throw std::invalid_argument("mesh: too large for one plan");
+  if (piece_hint && (long long)piece_hint->size() != S) piece_hint = nullptr;
+  if (!lattice) keep_exact = true;
   plan.sample_position.resize(3 * S);
-  std::vector<double> sample_exact(3 * S);  // the positions before rounding to float
+  std::vector<double> sample_exact(keep_exact ? 3 * S : 0);  // the positions before rounding to float
   plan.sample_weight.resize(S);
+  // Every sample is a convex combination of sub-vertices (which are samples themselves): they
+  // decide whether the evaluators need local coordinates.
+  const bool local = lattice && needs_local_coordinates(*lattice, moved);
+  if (lattice) {
+    plan.sample_piece.resize(S);
+    if (local) plan.sample_local.resize(3 * S);
+    else plan.sample_local.clear();
+  }
   auto put_sample = [&](long long s, const double* pos, double w) {
-    for (int i = 0; i < 3; ++i) {
-      plan.sample_position[3 * s + i] = (float)pos[i];
-      sample_exact[3 * s + i] = pos[i];
-    }
+    for (int i = 0; i < 3; ++i) plan.sample_position[3 * s + i] = (float)pos[i];
+    if (keep_exact)
+      for (int i = 0; i < 3; ++i) sample_exact[3 * s + i] = pos[i];
     plan.sample_weight[s] = (float)w;
+    if (lattice) locate_sample(plan, *lattice, s, pos, local, piece_hint ? (*piece_hint)[s] : kNoHint);
   };
   // Each sub-vertex, edge and patch writes its own samples: in parallel, the same values.
   const int threads = default_threads();
@@ -128,19 +158,7 @@ void locate_samples(Plan& plan, const LatticeSpec& lattice, const std::vector<do
   plan.sample_piece.resize(S);
   if (local) plan.sample_local.resize(3 * S);
   parallel_for(S, default_threads(), [&](long long b, long long e) {
-    for (long long s = b; s < e; ++s) {
-      double pos[3], prm[3];
-      int pc[3];
-      for (int i = 0; i < 3; ++i) pos[i] = local ? sample_exact[3 * s + i] : plan.sample_position[3 * s + i];
-      lattice.to_param(pos, prm);
-      lattice.find_pieces(prm, pc);
-      plan.sample_piece[s] = pack_pieces(pc);
-      if (local)
-        for (int a = 0; a < 3; ++a) {
-          const AxisPiece& piece = lattice.axes[a].pieces()[pc[a]];
-          plan.sample_local[3 * s + a] = piece.degree == 0 ? 0.0f : (float)((prm[a] - piece.origin) / piece.scale);
-        }
-    }
+    for (long long s = b; s < e; ++s) locate_sample(plan, lattice, s, &sample_exact[3 * s], local, kNoHint);
   });
 }
 

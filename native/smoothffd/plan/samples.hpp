@@ -31,7 +31,14 @@ std::vector<int> edge_sample_numerators(int n);
 // 1/3 and 2/3 from end a), fit_matrix, column_bary, samples, fit_degree, columns and
 // edge_samples. Returns the samples' positions in double (S x 3). Throws
 // std::invalid_argument past 2e9 samples.
-std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVertices& sub);
+// Given a lattice, also locates each sample as locate_samples does, in the same pass (its
+// position is then still in cache), with local coordinates where the sub-vertices need them
+// (needs_local_coordinates: the other samples are convex combinations of them); piece_hint:
+// the sample_piece of a plan with the same samples in another pose (a plan that follows with
+// its pieces held), each tried first. keep_exact false (with a lattice): returns nothing.
+std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVertices& sub,
+                                  const LatticeSpec* lattice = nullptr,
+                                  const std::vector<uint32_t>* piece_hint = nullptr, bool keep_exact = true);
 
 // Whether the evaluators' float arithmetic (t from the float position and the float map,
 // about 2^-24 (|ds/dp| |p| + |b - shift| + |origin - shift|) / scale of the span) cannot place

@@ -340,8 +340,9 @@ def on_render_pre(scene, *_args):
     state.flags.rendering = True
     # With motion blur, a moving input's shutter subframes hold the pieces the rendered frame
     # is cut into (plans.hold_pieces): one output topology over the shutter.
-    state.flags.render_shutter = holds.shutter(scene) + (scene.frame_current + scene.frame_subframe,) \
-        if holds.motion_blur(scene) else None
+    state.flags.renders += 1
+    state.flags.render_shutter = holds.shutter(scene) + (
+        scene.frame_current + scene.frame_subframe, state.flags.renders) if holds.motion_blur(scene) else None
     # With motion blur, adaptive tessellations get one topology over the frame's shutter
     # (holdframes.hold_shutter: the subframes are evaluated here, before the render's).
     if not state.flags.busy:

@@ -95,11 +95,15 @@ def hold_shutter(scene, modifiers):
     if not holds.motion_blur(scene) or threading.current_thread() is not threading.main_thread():
         return notes
     lo, hi = holds.shutter(scene)
-    times = []
+    # The frame rendered first, as the render evaluates it first: a moving input is clipped
+    # there and its shutter's other times hold those pieces (plans.hold_pieces), so that the
+    # counts are all per one sub-mesh, the one the render's evaluations then hold.
+    times = [(scene.frame_current, scene.frame_subframe)]
     for i in range(SHUTTER_SAMPLES):
         t = lo + (hi - lo) * i / (SHUTTER_SAMPLES - 1)
         f = int(t // 1)
-        times.append((f, t - f))
+        if abs(t - (scene.frame_current + scene.frame_subframe)) > 1e-6:
+            times.append((f, t - f))
     old = (scene.frame_current, scene.frame_subframe)
     try:
         with state.muted():

@@ -66,9 +66,9 @@ def update_modifier(obj, mod, p):
         # removing it changes the lattice's structure key, so that replans).
         lattice = plans.lattice(st, rest, pts, interp, got.l2o, got.settings.strength, weights)
         st.pieces_note = None
-        plan_key = plans.ensure_plan(st, got.source, lattice, got.level, got.backend, tess,
-                                     plans.hold_pieces(st, render, frame))
-        hold, hold_note = holds.lookup(ro, st, render, frame, holds.token(plan_key),
+        plans.ensure_plan(st, got.source, lattice, got.level, got.backend, tess,
+                          plans.hold_pieces(st, render, frame))
+        hold, hold_note = holds.lookup(ro, st, render, frame, holds.token(st.pieces_token),
                                        tess.setting) if tess.adaptive else (None, None)
         if tess.adaptive and render and hold is None and hold_note is None and \
                 p.scene is not None and holds.motion_blur(p.scene):
@@ -174,8 +174,8 @@ def tessellation_counts(obj, mod, p):
     rest, pts, interp, weights = got.lattice
     lattice = plans.lattice(st, rest, pts, interp, got.l2o, got.settings.strength, weights)
     hold = plans.hold_pieces(st, p.render, frames.scene_frame(p.scene, p.depsgraph))
-    plan_key = plans.ensure_plan(st, got.source, lattice, got.level, got.backend, got.tess, hold)
-    return holds.token(plan_key), got.tess.setting, plans.counts(st, lattice)
+    plans.ensure_plan(st, got.source, lattice, got.level, got.backend, got.tess, hold)
+    return holds.token(st.pieces_token), got.tess.setting, plans.counts(st, lattice)
 
 
 def forget(obj=None, mod=None, ro=None):

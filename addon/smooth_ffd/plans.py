@@ -41,7 +41,8 @@ class _progress:
 def ensure_plan(st, source, lattice, level, backend, tess=None, hold=False):
     """st.deformer for these inputs: the cached one while its key holds, else one that
     follows the new pose (follow; hold: keeping its pieces, hold_pieces), else a new plan.
-    Returns the plan's key. tess
+    Returns the plan's key; st.pieces_token names the plan's pieces (the sub-mesh the
+    adaptive counts are per: holds.py), kept by follows that hold them. tess
     (tessellation.Tess) adaptive: one adaptive plan on the backend serves every tolerance and
     max level, which are set on it for each frame (the plan does not depend on them: a camera
     moving in Screen mode replans nothing)."""
@@ -60,7 +61,7 @@ def ensure_plan(st, source, lattice, level, backend, tess=None, hold=False):
                 st.deformer = core.make_deformer(source, lattice, level, backend,
                                                  tess.tolerance if adaptive else None,
                                                  tess.max_level if adaptive else None)
-            st.topology_token = inputs.digest(plan_key)
+            st.topology_token = st.pieces_token = inputs.digest(plan_key)
             state.plans_built[0] += 1
         st.plan_key, st.faces_key = plan_key, faces_key
     if adaptive:
@@ -75,12 +76,15 @@ def hold_pieces(st, render, frame):
     - in the viewport while an animation plays: True, kept while every piece still lies in its
       knot box (playback then writes positions only where they hold; a stopped animation,
       scrubbing and renders clip anew);
-    - in a render with motion blur (state.flags.render_shutter, from render_pre): the frame
-      rendered is clipped anew; the other times of its shutter (the subframes its deformation
-      blur is made of) keep the pieces of the last clipping in that shutter wherever they lie
-      ('always'), so that they all share the frame's output topology;
+    - in a render with motion blur (state.flags.render_shutter, from render_pre): the first
+      evaluation in the render's shutter is clipped anew, which is the frame rendered (Cycles
+      evaluates it first, and holdframes.hold_shutter does too); every later one, the
+      shutter's other times (the subframes its deformation blur is made of) and the frame
+      again, keeps those pieces wherever they lie ('always'), so that they all share the
+      frame's output topology, and adaptive counts taken over the shutter apply to each;
     - else False.
-    st.pieces_for: the shutter in which the plan's pieces were last clipped."""
+    st.pieces_for: the render shutter in which the plan's pieces were last clipped (the
+    render's serial number is part of it: a new render of the same frame clips anew)."""
     if not render:
         st.pieces_for = None
         return live.playing()
@@ -88,7 +92,7 @@ def hold_pieces(st, render, frame):
     if sh is None or not sh[0] - 1e-4 <= frame <= sh[1] + 1e-4:
         st.pieces_for = None
         return False
-    if abs(frame - sh[2]) > 1e-4 and st.pieces_for == sh:
+    if st.pieces_for == sh:
         return "always"
     st.pieces_for = sh
     return False
@@ -125,6 +129,8 @@ def follow(st, source, lattice, faces_key, plan_key, adaptive, hold=False):
         sh = state.flags.render_shutter
         if hold == "always" and sh is not None:
             st.pieces_note = f"pieces held over the shutter {sh[0]:g}-{sh[1]:g}"
+    if not (hold and st.deformer.plan.pieces_held):
+        st.pieces_token = inputs.digest(plan_key)
     old = st.plan_key
     if kept and not adaptive:
         state.plans_followed_kept[0] += 1

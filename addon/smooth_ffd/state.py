@@ -72,6 +72,8 @@ class ModifierState:
         self.hold_cache = {}      # holds.lookup: a saved hold's counts as arrays
         self.pieces_for = None    # the render shutter in which the plan's pieces were last cut
         #                           (plans.hold_pieces: its other subframes hold them)
+        self.pieces_token = None  # names the plan's pieces, which adaptive counts are per
+        #                           (plans.ensure_plan; holds.py)
         self.pieces_note = None   # what holding the pieces did on the last update, for the status
 
 
@@ -159,8 +161,10 @@ class Pass:
 class _Flags:
     busy = False        # an update runs (or handlers are muted): handlers do nothing
     rendering = False   # between render_init and render_complete/cancel
-    render_shutter = None  # (from, to, frame): the frame rendered and its motion-blur shutter
-    #                        (render_pre; plans.hold_pieces)
+    render_shutter = None  # (from, to, frame, render): the frame rendered, its motion-blur
+    #                        shutter and the render's serial number (render_pre;
+    #                        plans.hold_pieces)
+    renders = 0            # render_pre calls: each render's serial number
 
 
 flags = _Flags()

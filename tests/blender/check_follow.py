@@ -36,9 +36,12 @@ plan to the new pose (smoothffd.Deformer.follow) instead of planning again.
 - the pieces held (plans.hold_pieces): the character in a slight idle motion played in the
   viewport follows holding its pieces as the core's Deformer.follow(hold=True) does, and
   writes no topology where they hold; the character waving in a lattice that boxes the whole
-  wave holds them on every frame, where only the sharp edges change: written alone; the waving character rendered with motion blur has one
-  topology over the shutter (its subframes evaluated by hand after render_pre, and a real
-  Cycles render of frame 2), where without the shutter known the subframes' differ.
+  wave holds them on every frame, where only the sharp edges change: written alone; the
+  waving character rendered with motion blur has one topology over the shutter (its
+  subframes evaluated by hand after render_pre, and a real Cycles render of frame 2), where
+  without the shutter known the subframes' differ; with an adaptive render tessellation
+  too: the counts taken over the shutter (holdframes.hold_shutter) are per the frame's
+  pieces, which every subframe holds, so they apply on every subframe.
 """
 import os
 import sys
@@ -463,7 +466,9 @@ def test_held_pieces():
     motion blur, the character waving: frame 2's shutter subframes (1.75, 2, 2.25) rendered
     without render_pre get other topologies; after render_pre, the frame clips and its
     subframes hold those pieces: one topology, said in the status; a real Cycles render of
-    frame 2 with motion blur shows one topology on every evaluation it makes."""
+    frame 2 with motion blur shows one topology on every evaluation it makes. (g) The same
+    with the render tessellation adaptive (Tolerance): the counts held over the shutter
+    apply on every subframe."""
     sc = bpy.context.scene
 
     def idle(f, d, ref, kept, me, before):
@@ -541,6 +546,38 @@ def test_held_pieces():
     T.check("Cycles render with motion blur: one topology on every subframe it evaluates",
             len(times) >= 2 and len({n for _, n in seen}) == 1
             and any("pieces held over the shutter" in t for t in texts),
+            f"{seen}; {texts[-1] if texts else None}")
+    # (g) The same with an adaptive render tessellation: render_pre takes the counts over the
+    # shutter from the frame's pieces held on every subframe, and they apply to each.
+    compat.set_modifier_input(mod, "Render Tessellation", "Tolerance")
+    compat.set_modifier_input(mod, "Render Tolerance", 0.01)
+    free = shutter_topologies()
+    sizes = {t: len(x) for t, x in free.items()}
+    T.check("adaptive, motion blur, shutter unknown: the subframes' topologies differ",
+            len(set(sizes.values())) > 1, str(sizes))
+    sc.frame_set(2)
+    handlers.on_render_pre(sc)
+    try:
+        st = objects.state_of(a, mod)
+        T.check("adaptive, render_pre: counts held over the moving input's shutter",
+                st.shutter is not None and st.shutter[0] == (1.75, 2.25),
+                str(None if st.shutter is None else st.shutter[0]) + " " + smooth_ffd.status(mod))
+        held_tris = shutter_topologies()
+        first = held_tris[2.0]
+        T.check("adaptive, motion blur: one topology over the shutter",
+                all(np.array_equal(first, x) for x in held_tris.values()),
+                f"{ {t: len(x) for t, x in held_tris.items()} } (unheld {sizes})")
+        T.check("adaptive, motion blur: the status says it",
+                "counts held over the shutter 1.75-2.25" in smooth_ffd.status(mod), smooth_ffd.status(mod))
+    finally:
+        handlers.on_render_done(sc)
+    seen.clear()
+    texts.clear()
+    T.render_evaluations(2, probe)
+    times = sorted({t for t, _ in seen})
+    T.check("adaptive, Cycles render with motion blur: one topology on every subframe it evaluates",
+            len(times) >= 2 and len({n for _, n in seen}) == 1
+            and all("counts held over the shutter 1.75-2.25" in t for t in texts),
             f"{seen}; {texts[-1] if texts else None}")
     sc.render.use_motion_blur = False
 

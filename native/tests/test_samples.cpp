@@ -145,9 +145,9 @@ TEST(Samples, LocalCoordinatesWhereFloatCannotResolveTheSpans) {
 TEST(Samples, LocatedInTheBuildAsByLocateSamples) {
   // The square moved across the knot planes of a degree-2 box (1/3, 2/3 and the box's faces)
   // and of a box of 1e-7 spans (local coordinates): build_samples given the lattice locates
-  // every sample as locate_samples does from the returned positions, with no hint, with the
-  // hint of the pose before (the same samples, most in the same pieces) and with a hint that
-  // is wrong everywhere.
+  // every sample as locate_samples does from the returned positions, and indexes them as
+  // without a held plan, with no held plan, with the plan of the pose before (the same
+  // samples, most in the same pieces) and with one whose pieces are wrong everywhere.
   LatticeSpec tiny;
   const std::vector<double> U = {0, 0, 0, 0.3, 0.5, 0.5 + 1e-7, 0.5 + 2e-7, 1, 1, 1};
   for (int a = 0; a < 3; ++a) {
@@ -161,7 +161,7 @@ TEST(Samples, LocatedInTheBuildAsByLocateSamples) {
   const Case cases[] = {{bspline_box(2, 5), 1.2, -0.05}, {tiny, 4e-7, 0.5 - 1e-7}};
   for (const Case& c : cases) {
     const FitTables fit = build_fit_tables(5);
-    std::vector<uint32_t> before;
+    Plan before;
     for (int pose = 0; pose < 3; ++pose) {
       Square sq;
       for (size_t i = 0; i < sq.sub.position.size(); ++i)
@@ -169,20 +169,24 @@ TEST(Samples, LocatedInTheBuildAsByLocateSamples) {
       Plan want = sq.plan;
       const std::vector<double> exact = build_samples(want, fit, sq.sub);
       locate_samples(want, c.lattice, exact);
-      std::vector<uint32_t> wrong(want.samples, 0u);
-      const std::vector<uint32_t>* hints[] = {nullptr, &before, &wrong};
-      for (const std::vector<uint32_t>* hint : hints) {
+      Plan wrong = want;
+      std::fill(wrong.sample_piece.begin(), wrong.sample_piece.end(), 0u);
+      const Plan* helds[] = {nullptr, pose ? &before : nullptr, &wrong};
+      for (const Plan* held : helds) {
         Plan got = sq.plan;
-        const std::vector<double> kept = build_samples(got, fit, sq.sub, &c.lattice, hint, pose == 1);
+        const std::vector<double> kept = build_samples(got, fit, sq.sub, &c.lattice, held, pose == 1);
         EXPECT_EQ(got.sample_piece, want.sample_piece) << pose;
         EXPECT_EQ(got.sample_local, want.sample_local) << pose;
         EXPECT_EQ(got.sample_position, want.sample_position) << pose;
+        EXPECT_EQ(got.sample_weight, want.sample_weight) << pose;
+        EXPECT_EQ(got.patch_samples, want.patch_samples) << pose;
+        EXPECT_EQ(got.edge_constraint, want.edge_constraint) << pose;
         EXPECT_EQ(kept.size(), pose == 1 ? exact.size() : 0u);
       }
       std::set<uint32_t> distinct(want.sample_piece.begin(), want.sample_piece.end());
       EXPECT_GT(distinct.size(), 1u) << "the square should cross a knot plane";
       EXPECT_EQ(!want.sample_local.empty(), c.scale < 1e-6);
-      before = want.sample_piece;
+      before = want;
     }
   }
 }

@@ -8,6 +8,8 @@
 // the constant continuation outside the lattice.
 #pragma once
 
+#include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -62,5 +64,35 @@ class AxisBasis {
   double extent_ = 1.0;  // from the first to the last plane (1 with fewer than two planes)
   std::vector<AxisPiece> pieces_;
 };
+
+inline int AxisBasis::find_piece(double s) const { return find_piece(s, -1); }
+
+// Inline: plan builds locate every sample (millions) with it.
+inline int AxisBasis::find_piece(double s, int guess) const {
+  const int last = (int)pieces_.size() - 1;
+  int lo = 0;
+  if (guess >= 0 && guess <= last && pieces_[guess].lo <= s && (guess == last || s < pieces_[guess + 1].lo)) {
+    lo = guess;  // the last piece with pieces_[i].lo <= s, as the search finds it
+  } else {
+    int hi = last;
+    while (lo < hi) {  // last piece with pieces_[i].lo <= s
+      int mid = (lo + hi + 1) / 2;
+      if (pieces_[mid].lo <= s) lo = mid; else hi = mid - 1;
+    }
+  }
+  // Within rounding of a plane counts as on it (and takes the piece above, as Blender's floor
+  // does for exact values), except on the top of the polynomial range, which takes the piece
+  // inside: vertices fitted to a lattice's or a box's faces get the one-sided inner Jacobian,
+  // whatever the rounding of s = A p + b.
+  // Rounding of s = A p + b in double is about 1e-16 |s|; 1e-9 of the axis's polynomial range
+  // on top (not 1e-9 |s|: with knots shifted to 1e7 that took points 0.01 off a plane as on it,
+  // and extrapolated the next piece's polynomial there, 3e-4 off in a lattice 2 wide).
+  const double eps = 1e-9 * extent_ + 8 * std::numeric_limits<double>::epsilon() * std::abs(s);
+  if (lo < last && pieces_[lo + 1].lo - s <= eps) ++lo;
+  if (lo == last && lo > 0 && pieces_[lo].degree == 0 && pieces_[lo - 1].degree > 0 &&
+      s - pieces_[lo].lo <= eps)
+    --lo;
+  return lo;
+}
 
 }  // namespace sffd

@@ -6,12 +6,6 @@
 
 namespace sffd {
 
-void LatticeSpec::to_param(const double p[3], double s[3]) const {
-  for (int a = 0; a < 3; ++a)
-    s[a] = object_to_param[a][0] * p[0] + object_to_param[a][1] * p[1] +
-           object_to_param[a][2] * p[2] + object_to_param[a][3];
-}
-
 void LatticeSpec::find_pieces(const double s[3], int piece[3]) const {
   for (int a = 0; a < 3; ++a) piece[a] = axes[a].find_piece(s[a]);
 }

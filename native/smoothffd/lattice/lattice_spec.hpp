@@ -25,7 +25,11 @@ struct LatticeSpec {
   // Sum of the per-axis degrees: the degree of the exact deformed triangle (paper, section 3).
   int degree_sum() const { return axes[0].degree() + axes[1].degree() + axes[2].degree(); }
 
-  void to_param(const double p[3], double s[3]) const;
+  void to_param(const double p[3], double s[3]) const {
+    for (int a = 0; a < 3; ++a)
+      s[a] = object_to_param[a][0] * p[0] + object_to_param[a][1] * p[1] + object_to_param[a][2] * p[2] +
+             object_to_param[a][3];
+  }
   // Pieces containing s, one per axis.
   void find_pieces(const double s[3], int piece[3]) const;
   // Position and Jacobian (row-major dF_r/dp_c) in double precision; D: count() x components.

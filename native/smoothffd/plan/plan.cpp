@@ -166,9 +166,9 @@ Plan build(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions&
   {
     const FitTables fit = build_fit_tables(std::max(3, lattice.degree_sum()));
     // With held pieces the samples are the same points of the same sub-mesh, moved a little:
-    // each is looked for first in the piece it had.
+    // their indexing is the old plan's, and each is looked for first in the piece it had.
     const std::vector<double> sample_exact =
-        build_samples(plan, fit, sub_vertices, &lattice, held && like ? &like->sample_piece : nullptr, opt.centre_rows);
+        build_samples(plan, fit, sub_vertices, &lattice, held ? like : nullptr, opt.centre_rows);
     timer.lap("samples");
     if (opt.centre_rows) build_centre_rows(plan, lattice, fit, sample_exact);
   }

@@ -42,7 +42,7 @@ std::vector<int> edge_sample_numerators(int n) {
 }
 
 std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVertices& sub, const LatticeSpec* lattice,
-                                  const std::vector<uint32_t>* piece_hint, bool keep_exact) {
+                                  const Plan* held, bool keep_exact) {
   const int n = fit.n, K = fit.columns, N3 = 3 * n;
   const int SV = (int)sub.weight.size(), E = (int)(plan.edge_vertex.size() / 2), P = (int)(plan.patch_vertex.size() / 3);
   const std::vector<double>& moved = sub.position;
@@ -52,7 +52,12 @@ std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVer
   auto edge_index = [&](int q) { return int(std::lower_bound(edge_num.begin(), edge_num.end(), q) - edge_num.begin()); };
   const long long S = (long long)SV + (long long)E * ES + (long long)P * IS;
   if (S > 2000000000LL) throw std::invalid_argument("mesh: too large for one plan");
-  if (piece_hint && (long long)piece_hint->size() != S) piece_hint = nullptr;
+  // A held plan's samples are these samples in another pose when its tables have their sizes
+  // (the same sub-mesh, so the same edges and patches in the same order).
+  if (held && !(held->samples == S && held->patch_samples.size() == (size_t)P * K &&
+                held->edge_constraint.size() == 2 * (size_t)E))
+    held = nullptr;
+  const std::vector<uint32_t>* piece_hint = held && held->sample_piece.size() == (size_t)S ? &held->sample_piece : nullptr;
   if (!lattice) keep_exact = true;
   plan.sample_position.resize(3 * S);
   std::vector<double> sample_exact(keep_exact ? 3 * S : 0);  // the positions before rounding to float
@@ -87,45 +92,66 @@ std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVer
       }
     }
   });
-  std::vector<int> column_interior(K, -1);
-  for (int k = 0, ord = 0; k < K; ++k) {
-    const int* q = &fit.numerator[3 * k];
-    if (q[0] > 0 && q[1] > 0 && q[2] > 0) column_interior[k] = ord++;
+  // Which sample each column of each patch reads: the held plan's, else from the sub-mesh.
+  if (held) {
+    plan.patch_samples = held->patch_samples;
+    plan.edge_constraint = held->edge_constraint;
+  } else {
+    std::vector<int> column_interior(K, -1);
+    for (int k = 0, ord = 0; k < K; ++k) {
+      const int* q = &fit.numerator[3 * k];
+      if (q[0] > 0 && q[1] > 0 && q[2] > 0) column_interior[k] = ord++;
+    }
+    plan.patch_samples.resize((size_t)P * K);
+    parallel_for(P, threads, [&](long long pb, long long pe) {
+      for (long long p = pb; p < pe; ++p) {
+        const int* cv = &plan.patch_vertex[3 * p];
+        for (int k = 0; k < K; ++k) {
+          const int* q = &fit.numerator[3 * k];
+          long long s;
+          int zeros = (q[0] == 0) + (q[1] == 0) + (q[2] == 0);
+          if (zeros == 2) {
+            s = cv[q[0] ? 0 : q[1] ? 1 : 2];
+          } else if (zeros == 1) {
+            int ek = q[2] == 0 ? 0 : q[0] == 0 ? 1 : 2;  // edge corner ek -> ek + 1
+            int along = q[(ek + 1) % 3];                  // numerator of the far corner
+            if (plan.patch_edge_reversed[3 * p + ek]) along = N3 - along;
+            s = SV + (long long)plan.patch_edge[3 * p + ek] * ES + edge_index(along);
+          } else {
+            s = SV + (long long)E * ES + (long long)p * IS + column_interior[k];
+          }
+          plan.patch_samples[(size_t)p * K + k] = (int)s;
+        }
+      }
+    });
+    plan.edge_constraint.resize(2 * (size_t)E);
+    for (int e = 0; e < E; ++e) {
+      plan.edge_constraint[2 * e] = SV + e * ES + edge_index(n);
+      plan.edge_constraint[2 * e + 1] = SV + e * ES + edge_index(2 * n);
+    }
   }
-  plan.patch_samples.resize((size_t)P * K);
+  // The patches' own samples, at their inside columns (all numerators positive) in column order.
+  std::vector<double> inside;  // IS x 3 barycentric points
+  for (int k = 0; k < K; ++k) {
+    const int* q = &fit.numerator[3 * k];
+    if (q[0] > 0 && q[1] > 0 && q[2] > 0)
+      for (int c = 0; c < 3; ++c) inside.push_back(q[c] / double(N3));
+  }
   parallel_for(P, threads, [&](long long pb, long long pe) {
     for (long long p = pb; p < pe; ++p) {
       const int* cv = &plan.patch_vertex[3 * p];
-      for (int k = 0; k < K; ++k) {
-        const int* q = &fit.numerator[3 * k];
-        long long s;
-        int zeros = (q[0] == 0) + (q[1] == 0) + (q[2] == 0);
-        if (zeros == 2) {
-          s = cv[q[0] ? 0 : q[1] ? 1 : 2];
-        } else if (zeros == 1) {
-          int ek = q[2] == 0 ? 0 : q[0] == 0 ? 1 : 2;  // edge corner ek -> ek + 1
-          int along = q[(ek + 1) % 3];                  // numerator of the far corner
-          if (plan.patch_edge_reversed[3 * p + ek]) along = N3 - along;
-          s = SV + (long long)plan.patch_edge[3 * p + ek] * ES + edge_index(along);
-        } else {
-          s = SV + (long long)E * ES + (long long)p * IS + column_interior[k];
-          double b[3] = {q[0] / double(N3), q[1] / double(N3), q[2] / double(N3)}, pos[3], w = 0;
-          for (int i = 0; i < 3; ++i) {
-            pos[i] = 0;
-            for (int c = 0; c < 3; ++c) pos[i] += b[c] * moved[3 * (size_t)cv[c] + i];
-          }
-          for (int c = 0; c < 3; ++c) w += b[c] * sub_weight[cv[c]];
-          put_sample(s, pos, w);
+      for (int o = 0; o < IS; ++o) {
+        const double* b = &inside[3 * (size_t)o];
+        double pos[3], w = 0;
+        for (int i = 0; i < 3; ++i) {
+          pos[i] = 0;
+          for (int c = 0; c < 3; ++c) pos[i] += b[c] * moved[3 * (size_t)cv[c] + i];
         }
-        plan.patch_samples[(size_t)p * K + k] = (int)s;
+        for (int c = 0; c < 3; ++c) w += b[c] * sub_weight[cv[c]];
+        put_sample(SV + (long long)E * ES + p * IS + o, pos, w);
       }
     }
   });
-  plan.edge_constraint.resize(2 * (size_t)E);
-  for (int e = 0; e < E; ++e) {
-    plan.edge_constraint[2 * e] = SV + e * ES + edge_index(n);
-    plan.edge_constraint[2 * e + 1] = SV + e * ES + edge_index(2 * n);
-  }
   plan.fit_matrix.assign(fit.M_r.begin(), fit.M_r.end());
   plan.column_bary.resize(3 * (size_t)K);
   for (int i = 0; i < 3 * K; ++i) plan.column_bary[i] = (float)(fit.numerator[i] / double(N3));

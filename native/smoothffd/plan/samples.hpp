@@ -33,12 +33,14 @@ std::vector<int> edge_sample_numerators(int n);
 // std::invalid_argument past 2e9 samples.
 // Given a lattice, also locates each sample as locate_samples does, in the same pass (its
 // position is then still in cache), with local coordinates where the sub-vertices need them
-// (needs_local_coordinates: the other samples are convex combinations of them); piece_hint:
-// the sample_piece of a plan with the same samples in another pose (a plan that follows with
-// its pieces held), each tried first. keep_exact false (with a lattice): returns nothing.
+// (needs_local_coordinates: the other samples are convex combinations of them). held: a plan
+// of the same sub-mesh in another pose (a plan that follows with its pieces held, before it
+// gives its arrays up): its patch_samples and edge_constraint are taken over, and each
+// sample is looked for first in the piece it had there; ignored where its tables' sizes
+// differ. keep_exact false (with a lattice): returns nothing.
 std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVertices& sub,
-                                  const LatticeSpec* lattice = nullptr,
-                                  const std::vector<uint32_t>* piece_hint = nullptr, bool keep_exact = true);
+                                  const LatticeSpec* lattice = nullptr, const Plan* held = nullptr,
+                                  bool keep_exact = true);
 
 // Whether the evaluators' float arithmetic (t from the float position and the float map,
 // about 2^-24 (|ds/dp| |p| + |b - shift| + |origin - shift|) / scale of the span) cannot place

@@ -111,6 +111,7 @@ struct FoldGrid {
   static constexpr int kSteps = 4, kPoints = (kSteps + 1) * (kSteps + 2) / 2;
   double b[kPoints][3];
   double q[kPoints][6];
+  double bt[3][kPoints], qt[6][kPoints];  // the same, point-major
   int quad[6][3];  // exponents of the quadratic terms
   int plus[6][3];  // cubic control point index of quad term + e_c
   FoldGrid() {
@@ -132,8 +133,9 @@ struct FoldGrid {
           double v = (t < 3 ? 1.0 : 2.0);
           for (int c = 0; c < 3; ++c)
             for (int r = 0; r < quad[t][c]; ++r) v *= b[n][c];
-          q[n][t] = v;
+          q[n][t] = qt[t][n] = v;
         }
+        for (int c = 0; c < 3; ++c) bt[c][n] = b[n][c];
       }
   }
 };
@@ -196,20 +198,30 @@ bool rest_patch_folds(const double cp[10][3], const double rn[9]) {
   }
   const double c[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
   const double flat2 = dot3(c, c);  // |N|^2 of the flat triangle (tangents u, w)
-  for (int n = 0; n < FoldGrid::kPoints; ++n) {
-    const double* b = g.b[n];
-    double a1[3] = {0, 0, 0}, a2[3] = {0, 0, 0}, m[3];
-    for (int t = 0; t < 6; ++t)
-      for (int i = 0; i < 3; ++i) {
-        a1[i] += g.q[n][t] * t1[t][i];
-        a2[i] += g.q[n][t] * t2[t][i];
+  // Every grid point, then the test (no early exit inside: the compiler vectorizes the points;
+  // each point's arithmetic is the same, in the same order).
+  constexpr int NP = FoldGrid::kPoints;
+  double a1[3][NP], a2[3][NP];
+  for (int i = 0; i < 3; ++i)
+    for (int n = 0; n < NP; ++n) {
+      double s1 = 0, s2 = 0;
+      for (int t = 0; t < 6; ++t) {
+        s1 += g.qt[t][n] * t1[t][i];
+        s2 += g.qt[t][n] * t2[t][i];
       }
-    const double N[3] = {a1[1] * a2[2] - a1[2] * a2[1], a1[2] * a2[0] - a1[0] * a2[2], a1[0] * a2[1] - a1[1] * a2[0]};
-    for (int k = 0; k < 3; ++k) m[k] = b[0] * rn[k] + b[1] * rn[3 + k] + b[2] * rn[6 + k];
+      a1[i][n] = s1;
+      a2[i][n] = s2;
+    }
+  bool fold = false;
+  for (int n = 0; n < NP; ++n) {
+    const double N[3] = {a1[1][n] * a2[2][n] - a1[2][n] * a2[1][n], a1[2][n] * a2[0][n] - a1[0][n] * a2[2][n],
+                         a1[0][n] * a2[1][n] - a1[1][n] * a2[0][n]};
+    double m[3];
+    for (int k = 0; k < 3; ++k) m[k] = g.bt[0][n] * rn[k] + g.bt[1][n] * rn[3 + k] + g.bt[2][n] * rn[6 + k];
     const double ln2 = dot3(N, N), lm2 = dot3(m, m);
-    if (!(lm2 > 0)) continue;
-    if (turns_past_fold(dot3(N, m), ln2, lm2) || ln2 < kCollapse * kCollapse * flat2) return true;
+    fold |= lm2 > 0 && (turns_past_fold(dot3(N, m), ln2, lm2) || ln2 < kCollapse * kCollapse * flat2);
   }
+  if (fold) return true;
   // The flat triangles a tessellation of level 1 to kLevels puts through the patch (what
   // the output is made of) against the normals at their centres, with the same margin.
   static const ChordGrid chords;
@@ -330,17 +342,20 @@ RestSurface build_rest_surface(const std::vector<double>& X, const std::vector<i
                                const std::vector<double>& cn, const std::vector<uint8_t>* flat) {
   RestSurface rs;
   rs.edge_cp.assign(6 * (size_t)e.count(), 0.0);
-  for (int id = 0; id < e.count(); ++id) {
-    for (int end = 0; end < 2; ++end) {
-      int v = e.vertex[2 * id + end], w = e.vertex[2 * id + 1 - end];
-      int t0 = e.side[2 * id], t1 = e.side[2 * id + 1];
-      const bool keep = e.face_count[id] > 2 || (flat && ((*flat)[t0] || (t1 >= 0 && (*flat)[t1])));
-      const double* n0 = &cn[9 * (size_t)t0 + 3 * slot_of(tv, t0, v)];
-      const double* n1 = t1 >= 0 ? &cn[9 * (size_t)t1 + 3 * slot_of(tv, t1, v)] : nullptr;
-      edge_point(&X[3 * (size_t)v], &X[3 * (size_t)w], n0, n1, (sharp[id] >> end) & 1, keep,
-                 &rs.edge_cp[6 * (size_t)id + 3 * end]);
+  // Each edge writes its own control points: in parallel, the same values.
+  parallel_for(e.count(), default_threads(), [&](long long b, long long end_id) {
+    for (long long id = b; id < end_id; ++id) {
+      for (int end = 0; end < 2; ++end) {
+        int v = e.vertex[2 * id + end], w = e.vertex[2 * id + 1 - end];
+        int t0 = e.side[2 * id], t1 = e.side[2 * id + 1];
+        const bool keep = e.face_count[id] > 2 || (flat && ((*flat)[t0] || (t1 >= 0 && (*flat)[t1])));
+        const double* n0 = &cn[9 * (size_t)t0 + 3 * slot_of(tv, t0, v)];
+        const double* n1 = t1 >= 0 ? &cn[9 * (size_t)t1 + 3 * slot_of(tv, t1, v)] : nullptr;
+        edge_point(&X[3 * (size_t)v], &X[3 * (size_t)w], n0, n1, (sharp[id] >> end) & 1, keep,
+                   &rs.edge_cp[6 * (size_t)id + 3 * end]);
+      }
     }
-  }
+  });
   return rs;
 }
 

@@ -16,15 +16,6 @@ void triangle_normal(const std::vector<double>& X, const int* t, double* n) {
 
 }  // namespace
 
-void normalize_or(double* v, const double* fallback) {
-  double l = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-  if (l > 1e-30 && std::isfinite(l)) {
-    for (int i = 0; i < 3; ++i) v[i] /= l;
-  } else {
-    for (int i = 0; i < 3; ++i) v[i] = fallback[i];
-  }
-}
-
 // Unit normal at every triangle corner (#T x 3 x 3): the input split normals, or smooth
 // area-weighted vertex normals when none are given.
 std::vector<double> triangle_corner_normals(const InputMesh& m, const Triangulation& tr,

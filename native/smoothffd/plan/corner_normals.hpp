@@ -2,6 +2,7 @@
 // which triangles belong to flat faces (plan/rest_surface.hpp: they follow their own planes).
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -10,8 +11,16 @@
 
 namespace sffd {
 
-// v normalized, or fallback where v has no finite nonzero length.
-void normalize_or(double* v, const double* fallback);
+// v normalized, or fallback where v has no finite nonzero length. Inline: the plan's normal
+// stages call it per corner and per patch corner on every pose.
+inline void normalize_or(double* v, const double* fallback) {
+  double l = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+  if (l > 1e-30 && std::isfinite(l)) {
+    for (int i = 0; i < 3; ++i) v[i] /= l;
+  } else {
+    for (int i = 0; i < 3; ++i) v[i] = fallback[i];
+  }
+}
 
 // Unit normal at every triangle corner (#T x 3 x 3): the input split normals, or smooth
 // area-weighted vertex normals when none are given. tv: the triangles' vertices (#T x 3).

@@ -16,6 +16,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <random>
 
 #include "smoothffd/eval/cpu_fitting.hpp"
@@ -66,6 +67,15 @@ TEST(CpuSampling, BatchesMatchScalarSamplePoint) {
       }
     }
     for (int c : seen) ASSERT_EQ(c, 1);
+    // Each box's samples together, in plan order, in as few batches as kLanes allows.
+    std::map<uint32_t, int> in_box;
+    for (int s2 = 0; s2 < plan.samples; ++s2) ++in_box[plan.sample_piece[s2]];
+    long long fewest = 0;
+    for (const auto& kv : in_box) fewest += (kv.second + kLanes - 1) / kLanes;
+    ASSERT_EQ(sb.count(), fewest);
+    for (int i = 1; i < plan.samples; ++i)
+      if (plan.sample_piece[sb.order[i]] == plan.sample_piece[sb.order[i - 1]])
+        ASSERT_LT(sb.order[i - 1], sb.order[i]);
 
     std::vector<float> F(3 * (size_t)plan.samples, NAN), J(9 * (size_t)plan.samples, NAN);
     std::vector<float> Fv(3 * (size_t)plan.samples, NAN);

@@ -47,16 +47,34 @@ SampleBatches make_sample_batches(const Plan& plan, const std::vector<int>* only
   };
   const long long boxes = (long long)n[0] * n[1] * n[2];
   if (boxes <= 4LL * S + 1024) {
+    // A counting sort; then each box's samples, contiguous, cut into batches of kLanes (what
+    // the general loop below gives, without reading the samples' pieces again).
     std::vector<int> first(boxes + 1, 0);
-    for (int s : ids) ++first[box(plan.sample_piece[s]) + 1];
+    std::vector<uint32_t> key_of(boxes);
+    for (int s : ids) {
+      const uint32_t k = plan.sample_piece[s];
+      const long long b = box(k);
+      ++first[b + 1];
+      key_of[b] = k;
+    }
     std::partial_sum(first.begin(), first.end(), first.begin());
+    for (long long b = 0; b < boxes; ++b) {
+      if (first[b] == first[b + 1]) continue;
+      const uint8_t terms = (uint8_t)box_terms(plan, key_of[b]);
+      for (int i = first[b]; i < first[b + 1]; i += kLanes) {
+        sb.start.push_back(i);
+        sb.terms.push_back(terms);
+      }
+    }
     for (int s : ids) sb.order[first[box(plan.sample_piece[s])]++] = s;
-  } else {  // very fine lattices: more boxes than samples
-    sb.order = ids;
-    std::stable_sort(sb.order.begin(), sb.order.end(), [&](int x, int y) {
-      return box(plan.sample_piece[x]) < box(plan.sample_piece[y]);
-    });
+    sb.start.push_back(S);
+    return sb;
   }
+  // Very fine lattices: more boxes than samples.
+  sb.order = ids;
+  std::stable_sort(sb.order.begin(), sb.order.end(), [&](int x, int y) {
+    return box(plan.sample_piece[x]) < box(plan.sample_piece[y]);
+  });
   for (int i = 0; i < S;) {
     const uint32_t key = plan.sample_piece[sb.order[i]];
     int j = i;

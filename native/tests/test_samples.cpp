@@ -27,6 +27,17 @@ struct Square {
   }
 };
 
+// A degree-2 B-spline box on [0, 1]^3 with two spans of 1e-7 at 0.5 on every axis.
+LatticeSpec tiny_spans() {
+  LatticeSpec s;
+  const std::vector<double> U = {0, 0, 0, 0.3, 0.5, 0.5 + 1e-7, 0.5 + 2e-7, 1, 1, 1};
+  for (int a = 0; a < 3; ++a) {
+    s.axes[a] = AxisBasis::bspline(2, U, 7);
+    s.object_to_param[a][a] = 1.0;
+  }
+  return s;
+}
+
 }  // namespace
 
 TEST(Samples, EdgeNumeratorsByHand) {
@@ -122,12 +133,7 @@ TEST(Samples, PiecesOfAKnownLattice) {
 
 TEST(Samples, LocalCoordinatesWhereFloatCannotResolveTheSpans) {
   // Spans of 1e-7 at 0.5 on every axis: a float position resolves them to about a quarter.
-  LatticeSpec s;
-  const std::vector<double> U = {0, 0, 0, 0.3, 0.5, 0.5 + 1e-7, 0.5 + 2e-7, 1, 1, 1};
-  for (int a = 0; a < 3; ++a) {
-    s.axes[a] = AxisBasis::bspline(2, U, 7);
-    s.object_to_param[a][a] = 1.0;
-  }
+  const LatticeSpec s = tiny_spans();
   const std::vector<double> pos = {0.5 + 0.25e-7, 0.5 + 1.5e-7, 0.4};
   EXPECT_TRUE(needs_local_coordinates(s, pos));
   EXPECT_FALSE(needs_local_coordinates(bspline_box(2, 5), pos));
@@ -148,12 +154,7 @@ TEST(Samples, LocatedInTheBuildAsByLocateSamples) {
   // every sample as locate_samples does from the returned positions, and indexes them as
   // without a held plan, with no held plan, with the plan of the pose before (the same
   // samples, most in the same pieces) and with one whose pieces are wrong everywhere.
-  LatticeSpec tiny;
-  const std::vector<double> U = {0, 0, 0, 0.3, 0.5, 0.5 + 1e-7, 0.5 + 2e-7, 1, 1, 1};
-  for (int a = 0; a < 3; ++a) {
-    tiny.axes[a] = AxisBasis::bspline(2, U, 7);
-    tiny.object_to_param[a][a] = 1.0;
-  }
+  const LatticeSpec tiny = tiny_spans();
   struct Case {
     LatticeSpec lattice;
     double scale, shift;

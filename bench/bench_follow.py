@@ -64,11 +64,15 @@ def run(level, frames, device):
     # first plan.
     h = smoothffd.Deformer(mesh, lattice, level=level, device=device)
     h.deform()
-    holding, held, held_kept = [], 0, 0
+    holding, held, held_kept, held_follow, held_stages = [], 0, 0, [], {}
     for m in poses:
         t = time.perf_counter()
         held_kept += h.follow(m, hold=True)
-        held += h.plan.pieces_held
+        t1 = time.perf_counter()
+        if h.plan.pieces_held:
+            held += 1
+            held_follow.append(t1 - t)
+            held_stages = h.plan.build_ms
         h.deform()
         holding.append(time.perf_counter() - t)
     replan = []
@@ -82,8 +86,11 @@ def run(level, frames, device):
           f"topology kept {kept}/{frames}); a new plan every frame {median_ms(replan):.1f} ms = "
           f"{median_ms(replan) / s:.2f}x static", flush=True)
     print(f"  holding the pieces: moving {median_ms(holding):.1f} ms = {median_ms(holding) / s:.2f}x static "
-          f"(pieces held {held}/{frames}, topology kept {held_kept}/{frames})", flush=True)
-    print("  follow stages (ms, last frame): " +
+          f"(pieces held {held}/{frames}, topology kept {held_kept}/{frames}; a held follow "
+          f"{median_ms(held_follow) if held_follow else float('nan'):.1f} ms)", flush=True)
+    print("  held follow stages (ms, last held frame): " +
+          ", ".join(f"{k} {v:.1f}" for k, v in held_stages.items()), flush=True)
+    print("  follow stages with a new clipping (ms, last frame): " +
           ", ".join(f"{k} {v:.1f}" for k, v in d.plan.build_ms.items()), flush=True)
 
 

@@ -106,12 +106,12 @@ inline bool turns_past_fold(double dot, double n2, double m2) {
 }
 
 // The fold test's grid: 15 barycentric points (4 steps a side) with the 6 quadratic Bernstein
-// values at each, in the order of kQuad.
+// values at each, in the order of kQuad; point-major (b[c][n], q[t][n]: the test runs over the
+// points).
 struct FoldGrid {
   static constexpr int kSteps = 4, kPoints = (kSteps + 1) * (kSteps + 2) / 2;
-  double b[kPoints][3];
-  double q[kPoints][6];
-  double bt[3][kPoints], qt[6][kPoints];  // the same, point-major
+  double b[3][kPoints];
+  double q[6][kPoints];
   int quad[6][3];  // exponents of the quadratic terms
   int plus[6][3];  // cubic control point index of quad term + e_c
   FoldGrid() {
@@ -126,16 +126,15 @@ struct FoldGrid {
     int n = 0;
     for (int i = 0; i <= kSteps; ++i)
       for (int j = 0; i + j <= kSteps; ++j, ++n) {
-        b[n][0] = double(kSteps - i - j) / kSteps;
-        b[n][1] = double(i) / kSteps;
-        b[n][2] = double(j) / kSteps;
+        b[0][n] = double(kSteps - i - j) / kSteps;
+        b[1][n] = double(i) / kSteps;
+        b[2][n] = double(j) / kSteps;
         for (int t = 0; t < 6; ++t) {
           double v = (t < 3 ? 1.0 : 2.0);
           for (int c = 0; c < 3; ++c)
-            for (int r = 0; r < quad[t][c]; ++r) v *= b[n][c];
-          q[n][t] = qt[t][n] = v;
+            for (int r = 0; r < quad[t][c]; ++r) v *= b[c][n];
+          q[t][n] = v;
         }
-        for (int c = 0; c < 3; ++c) bt[c][n] = b[n][c];
       }
   }
 };
@@ -206,8 +205,8 @@ bool rest_patch_folds(const double cp[10][3], const double rn[9]) {
     for (int n = 0; n < NP; ++n) {
       double s1 = 0, s2 = 0;
       for (int t = 0; t < 6; ++t) {
-        s1 += g.qt[t][n] * t1[t][i];
-        s2 += g.qt[t][n] * t2[t][i];
+        s1 += g.q[t][n] * t1[t][i];
+        s2 += g.q[t][n] * t2[t][i];
       }
       a1[i][n] = s1;
       a2[i][n] = s2;
@@ -217,7 +216,7 @@ bool rest_patch_folds(const double cp[10][3], const double rn[9]) {
     const double N[3] = {a1[1][n] * a2[2][n] - a1[2][n] * a2[1][n], a1[2][n] * a2[0][n] - a1[0][n] * a2[2][n],
                          a1[0][n] * a2[1][n] - a1[1][n] * a2[0][n]};
     double m[3];
-    for (int k = 0; k < 3; ++k) m[k] = g.bt[0][n] * rn[k] + g.bt[1][n] * rn[3 + k] + g.bt[2][n] * rn[6 + k];
+    for (int k = 0; k < 3; ++k) m[k] = g.b[0][n] * rn[k] + g.b[1][n] * rn[3 + k] + g.b[2][n] * rn[6 + k];
     const double ln2 = dot3(N, N), lm2 = dot3(m, m);
     fold |= lm2 > 0 && (turns_past_fold(dot3(N, m), ln2, lm2) || ln2 < kCollapse * kCollapse * flat2);
   }

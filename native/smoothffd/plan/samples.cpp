@@ -92,16 +92,19 @@ std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVer
       }
     }
   });
+  // The inside columns (all numerators positive), in column order: the patches' own samples.
+  std::vector<int> inside;
+  for (int k = 0; k < K; ++k) {
+    const int* q = &fit.numerator[3 * k];
+    if (q[0] > 0 && q[1] > 0 && q[2] > 0) inside.push_back(k);
+  }
   // Which sample each column of each patch reads: the held plan's, else from the sub-mesh.
   if (held) {
     plan.patch_samples = held->patch_samples;
     plan.edge_constraint = held->edge_constraint;
   } else {
     std::vector<int> column_interior(K, -1);
-    for (int k = 0, ord = 0; k < K; ++k) {
-      const int* q = &fit.numerator[3 * k];
-      if (q[0] > 0 && q[1] > 0 && q[2] > 0) column_interior[k] = ord++;
-    }
+    for (int o = 0; o < IS; ++o) column_interior[inside[o]] = o;
     plan.patch_samples.resize((size_t)P * K);
     parallel_for(P, threads, [&](long long pb, long long pe) {
       for (long long p = pb; p < pe; ++p) {
@@ -130,18 +133,12 @@ std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVer
       plan.edge_constraint[2 * e + 1] = SV + e * ES + edge_index(2 * n);
     }
   }
-  // The patches' own samples, at their inside columns (all numerators positive) in column order.
-  std::vector<double> inside;  // IS x 3 barycentric points
-  for (int k = 0; k < K; ++k) {
-    const int* q = &fit.numerator[3 * k];
-    if (q[0] > 0 && q[1] > 0 && q[2] > 0)
-      for (int c = 0; c < 3; ++c) inside.push_back(q[c] / double(N3));
-  }
   parallel_for(P, threads, [&](long long pb, long long pe) {
     for (long long p = pb; p < pe; ++p) {
       const int* cv = &plan.patch_vertex[3 * p];
       for (int o = 0; o < IS; ++o) {
-        const double* b = &inside[3 * (size_t)o];
+        const int* q = &fit.numerator[3 * inside[o]];
+        const double b[3] = {q[0] / double(N3), q[1] / double(N3), q[2] / double(N3)};
         double pos[3], w = 0;
         for (int i = 0; i < 3; ++i) {
           pos[i] = 0;

@@ -41,7 +41,7 @@ class _progress:
 def ensure_plan(st, source, lattice, level, backend, tess=None, hold=False):
     """st.deformer for these inputs: the cached one while its key holds, else one that
     follows the new pose (follow; hold: keeping its pieces, hold_pieces), else a new plan.
-    Returns the plan's key; st.pieces_token names the plan's pieces (the sub-mesh the
+    st.plan_key is the plan's key; st.pieces_token names its pieces (the sub-mesh the
     adaptive counts are per: holds.py), kept by follows that hold them. tess
     (tessellation.Tess) adaptive: one adaptive plan on the backend serves every tolerance and
     max level, which are set on it for each frame (the plan does not depend on them: a camera
@@ -67,7 +67,6 @@ def ensure_plan(st, source, lattice, level, backend, tess=None, hold=False):
     if adaptive:
         st.deformer.tolerance = float(tess.tolerance)
         st.deformer.max_level = int(tess.max_level)
-    return plan_key
 
 
 def hold_pieces(st, render, frame):

@@ -8,7 +8,10 @@
 #include <cmath>
 #include <random>
 #include <stdexcept>
+#include <string>
 
+#include "smoothffd/core/buffer_pool.hpp"
+#include "smoothffd/eval/cpu_evaluator.hpp"
 #include "smoothffd/plan/plan.hpp"
 #include "test_util.hpp"
 
@@ -268,4 +271,90 @@ TEST(Follow, HoldKeepsThePiecesWhileTheyStayInTheirBoxes) {
   EXPECT_FALSE(follow_plan(held, shifted(0.06), s, level(3), HoldPieces::checked));  // the face at 0.39 - 0.49 now at 0.45 - 0.55
   EXPECT_FALSE(held.pieces_held);
   expect_same_plan(held, build_plan_like(shifted(0.06), s, level(3), before));
+}
+
+// A CPU evaluator takes its predecessor's sample batches and output tables over (through their
+// BufferPool) exactly where the plan that followed a pose kept what they are made from, and
+// frames bitwise as an evaluator that made its own.
+TEST(Follow, AnEvaluatorTakesOverTheTablesThePlanKept) {
+  const LatticeSpec s = bspline_box(2, 4);  // planes at 0.5
+  const InputMesh m = flat_grid(8, 0.09, 0.89);
+  auto shifted = [&](double d, int axis = 0) {
+    InputMesh moved = m;
+    for (size_t i = axis; i < moved.positions.size(); i += 3) moved.positions[i] += d;
+    return moved;
+  };
+  std::vector<float> D = zero_values(s), D2;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-0.05f, 0.05f);
+  for (float& d : D) d = u(rng);
+  D2 = D;
+  D2[1] += 0.03f;  // the corner point moved (its reach: x, y, z < 0.5): an incremental frame
+  auto plan = std::make_shared<Plan>(build_plan(m, s, level(3)));
+  auto pool = std::make_shared<BufferPool>();
+  // The next evaluator of `plan` from the pool: what it took over, and its frames (a whole one,
+  // then an incremental one) against those of an evaluator making its own tables for a copy of
+  // the plan. Returns whether it took the batches.
+  auto next = [&](int batches, bool owned, const std::string& what) {
+    SCOPED_TRACE(what);
+    std::vector<float> pos(3 * (size_t)plan->output_vertices), nrm(9 * (size_t)plan->output_triangles);
+    std::vector<float> pos2 = pos, nrm2 = nrm;
+    bool took;
+    {
+      CpuEvaluator ev(plan, 0, "auto", pool);
+      took = ev.took_sample_batches();
+      if (batches >= 0) EXPECT_EQ(took, batches == 1);
+      EXPECT_EQ(ev.took_output_tables(), owned);
+      ev.evaluate(D.data(), pos2.data(), nrm2.data(), Frame::whole);
+      pos = pos2, nrm = nrm2;
+      ev.evaluate(D2.data(), pos2.data(), nrm2.data(), Frame::incremental);  // into the same arrays
+      EXPECT_LT(ev.last_frame().patches, plan->patches);
+    }
+    const auto copy = std::make_shared<const Plan>(*plan);
+    const CpuOut fresh = run_cpu(copy, D), fresh2 = run_cpu(copy, D2);
+    EXPECT_EQ(pos, fresh.pos);
+    EXPECT_EQ(nrm, fresh.nrm);
+    EXPECT_EQ(pos2, fresh2.pos);
+    EXPECT_EQ(nrm2, fresh2.nrm);
+    return took;
+  };
+  next(0, false, "the first evaluator");
+  next(1, true, "the same plan again");
+  // Pieces held and every sample still in its lattice piece (moved across the grid, at z = 0.37;
+  // its cuts at x, y = 0.5 stay there): both taken over.
+  ASSERT_TRUE(follow_plan(*plan, shifted(0.002, 2), s, level(3), HoldPieces::checked));
+  ASSERT_TRUE(plan->pieces_held);
+  EXPECT_TRUE(plan->repieced_samples.empty());
+  next(1, true, "a held follow");
+  // Moved along it: the samples on the cut at x = 0.5 move past it, into the next piece; they
+  // are batched again.
+  ASSERT_TRUE(follow_plan(*plan, shifted(0.002), s, level(3), HoldPieces::checked));
+  ASSERT_TRUE(plan->pieces_held);
+  EXPECT_FALSE(plan->repieced_samples.empty());
+  next(1, true, "a held follow, samples in other lattice pieces");
+  // Pieces held across the plane at 0.5: the topology is the same, more samples are in the
+  // next piece.
+  ASSERT_TRUE(follow_plan(*plan, shifted(0.06), s, level(3), HoldPieces::always));
+  ASSERT_TRUE(plan->pieces_held);
+  next(1, true, "pieces held, samples in other lattice pieces");
+  // Back and forth: each time batched again, until the batches added are too many, then made
+  // anew, the frames the same throughout.
+  int taken = 0, made = 0;
+  for (int step = 0; step < 40; ++step) {
+    ASSERT_TRUE(follow_plan(*plan, shifted(step % 2 ? 0.002 : 0.0), s, level(3), HoldPieces::always));
+    (next(-1, true, "back and forth, step " + std::to_string(step)) ? taken : made)++;
+  }
+  EXPECT_GE(made, 1);
+  EXPECT_GT(taken, 4 * made);
+  // Two follows with no evaluator between them: the pool's batches are two plans old.
+  ASSERT_TRUE(follow_plan(*plan, shifted(0.002), s, level(3), HoldPieces::checked));
+  ASSERT_TRUE(follow_plan(*plan, shifted(0.0), s, level(3), HoldPieces::checked));
+  next(0, true, "two follows");
+  // Clipped again: new samples and topology.
+  ASSERT_FALSE(follow_plan(*plan, shifted(0.06), s, level(3)));
+  ASSERT_FALSE(plan->pieces_held);
+  next(0, false, "a new clipping");
+  // A plan of its own (another pose), the pool's tables being the last plan's.
+  plan = std::make_shared<Plan>(build_plan(shifted(0.002), s, level(3)));
+  next(0, false, "another plan");
 }

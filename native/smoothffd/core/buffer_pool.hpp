@@ -1,11 +1,14 @@
-// Float buffers handed from one evaluator to the next of the same owner. A Deformer whose plan
-// follows a moving input (follow_plan) gets a new evaluator every frame; taking the old one's
-// buffers, whose memory is already mapped, spares the new one the page faults of fresh memory
-// (at W1 level 4 tens of MB a frame). Thread-safe.
+// Float buffers, and the tables an evaluator derives from its plan, handed from one evaluator
+// to the next of the same owner. A Deformer whose plan follows a moving input (follow_plan)
+// gets a new evaluator every frame; taking the old one's buffers, whose memory is already
+// mapped, spares the new one the page faults of fresh memory (at W1 level 4 tens of MB a
+// frame), and taking its tables where the plan kept what they are made from spares their
+// building (eval/cpu_evaluator.cpp). Thread-safe.
 #pragma once
 
 #include <algorithm>
 #include <cstddef>
+#include <memory>
 #include <mutex>
 #include <utility>
 #include <vector>
@@ -51,6 +54,17 @@ class BufferPool {
     }
   }
 
+  // The tables an evaluator leaves for the next (one set at a time; the evaluator that takes
+  // them checks that they were made from what its plan has, and knows their type).
+  void leave_tables(std::shared_ptr<void> tables) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    tables_ = std::move(tables);
+  }
+  std::shared_ptr<void> take_tables() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return std::move(tables_);
+  }
+
   size_t bytes() const {
     std::lock_guard<std::mutex> lock(mutex_);
     size_t b = 0;
@@ -62,6 +76,7 @@ class BufferPool {
   static constexpr size_t kKept = 8;
   mutable std::mutex mutex_;
   std::vector<std::vector<float>> kept_;
+  std::shared_ptr<void> tables_;
 };
 
 }  // namespace sffd

@@ -95,18 +95,46 @@ std::vector<std::string> cpu_isas() {
   return out;
 }
 
+// The tables an evaluator leaves in its pool: those that depend on the plan's samples (their
+// batches) and on its output topology (the points each patch writes), with the plan's names of
+// what they were made from.
+struct CpuEvaluator::Carried {
+  uint64_t samples_id = 0, topology_id = 0;
+  SampleBatches batches;
+  std::vector<int> slot;  // repiece_sample_batches's
+  OwnedPoints output_owned, render_owned;
+};
+
 CpuEvaluator::CpuEvaluator(std::shared_ptr<const Plan> plan, int threads, const std::string& isa,
                            std::shared_ptr<BufferPool> pool)
     : plan_(std::move(plan)), pool_(std::move(pool)), threads_(threads > 0 ? threads : default_threads()),
       kernels_(kernels_for(isa)),
-      batches_(make_sample_batches(*plan_)),
       positions_batches_(positions_only_batches(*plan_)),
       fit_columns_(make_fit_columns(*plan_)),
       grid_lanes_(make_grid_basis_lanes(*plan_)),
-      output_owned_(owned_output_vertices(*plan_)),
-      render_owned_(owned_render_vertices(*plan_)),
       end_normals_(make_edge_end_normals(*plan_)) {
   const Plan& p = *plan_;
+  std::shared_ptr<Carried> carried = pool_ ? std::static_pointer_cast<Carried>(pool_->take_tables()) : nullptr;
+  // The batches of the same samples, or of the plan this one followed with the samples that
+  // changed pieces batched again (repiece_sample_batches).
+  took_owned_ = carried && carried->topology_id == p.topology_id;
+  if (carried && (carried->samples_id == p.samples_id ||
+                  (p.samples_base_id != 0 && carried->samples_id == p.samples_base_id))) {
+    batches_ = std::move(carried->batches);
+    batch_slot_ = std::move(carried->slot);
+    took_batches_ = carried->samples_id == p.samples_id || repiece_sample_batches(p, batches_, batch_slot_);
+  }
+  if (!took_batches_) {
+    batches_ = make_sample_batches(p);
+    batch_slot_.clear();
+  }
+  if (took_owned_) {
+    output_owned_ = std::move(carried->output_owned);
+    render_owned_ = std::move(carried->render_owned);
+  } else {
+    output_owned_ = owned_output_vertices(p);
+    render_owned_ = owned_render_vertices(p);
+  }
   for (size_t i = 0; i + 1 < p.centre_start.size(); ++i)
     centre_widest_ = std::max(centre_widest_, p.centre_start[i + 1] - p.centre_start[i]);
   auto buffer = [&](std::vector<float>& v, size_t n) {
@@ -125,6 +153,14 @@ CpuEvaluator::CpuEvaluator(std::shared_ptr<const Plan> plan, int threads, const 
 
 CpuEvaluator::~CpuEvaluator() {
   if (!pool_) return;
+  auto carried = std::make_shared<Carried>();
+  carried->samples_id = plan_->samples_id;
+  carried->topology_id = plan_->topology_id;
+  carried->batches = std::move(batches_);
+  carried->slot = std::move(batch_slot_);
+  carried->output_owned = std::move(output_owned_);
+  carried->render_owned = std::move(render_owned_);
+  pool_->leave_tables(std::move(carried));
   for (auto* v : {&sample_value_, &sample_jacobian_, &end_normal_, &edge_control_, &patch_control_, &patch_normal_})
     pool_->give(std::move(*v));
 }

@@ -28,7 +28,10 @@ class CpuEvaluator : public Evaluator {
   // "x86-64-v2" (the baseline of shipped builds), "x86-64-v3" (AVX2 + FMA). Throws
   // std::invalid_argument for a path this build lacks or this CPU cannot run.
   // pool: where this evaluator takes its per-frame buffers from and gives them back to when it
-  // is destroyed (core/buffer_pool.hpp), or null: its own.
+  // is destroyed (core/buffer_pool.hpp), or null: its own. Its tables of the samples' batches
+  // and of the points each patch writes go there too, and the next evaluator takes them over
+  // where its plan has the same samples and output topology (Plan::samples_id, topology_id:
+  // a plan that followed a pose holding its pieces, follow_plan), instead of making them again.
   CpuEvaluator(std::shared_ptr<const Plan> plan, int threads = 0, const std::string& isa = "auto",
                std::shared_ptr<BufferPool> pool = nullptr);
   ~CpuEvaluator() override;
@@ -50,16 +53,24 @@ class CpuEvaluator : public Evaluator {
   // Host memory of the incremental frames' tables (built on the first incremental frame; 0 before).
   size_t update_bytes() const { return reach_ ? reach_->bytes() : 0; }
   int threads() const { return threads_; }
+  // Whether this evaluator took its sample batches (batching again only the samples whose
+  // lattice pieces changed), and its tables of the output and render vertices each patch
+  // writes, over from the evaluator before it (pool).
+  bool took_sample_batches() const { return took_batches_; }
+  bool took_output_tables() const { return took_owned_; }
 
  private:
   enum class Kind { none, positions, corners, compact };
   StageTimes run(const float* D, float* positions, float* corner_normals, float* render_normals, Frame frame);
   void tessellate_positions(const PlanView& pv, const FrameView& fv, const ChangedRuns* runs);
+  struct Carried;  // the tables left to the next evaluator (cpu_evaluator.cpp)
   std::shared_ptr<const Plan> plan_;
   std::shared_ptr<BufferPool> pool_;
+  bool took_batches_ = false, took_owned_ = false;
   int threads_;
   const CpuFrameKernels* kernels_;  // the per-ISA per-frame loops
   SampleBatches batches_;  // sampling: samples grouped by lattice box, kLanes at a time
+  std::vector<int> batch_slot_;  // each sample's place in them, once a follow repieced them
   SampleBatches positions_batches_;  // the same for positions only with centre rows
   FitColumns fit_columns_; // fitting: the centre row's columns, kLanes at a time
   GridBasisLanes grid_lanes_;  // normal tessellation: grid points kLanes at a time

@@ -50,7 +50,7 @@ void sample_range(const PlanView& pv, const float* D, const SampleBatches& sb, l
   for (long long i = b; i < e; ++i) {
     bool with_jacobian = jacobian && every;
     if (jacobian && !every)
-      for (int k = start[i]; k < start[i + 1]; ++k) with_jacobian |= order[k] < jacobian_below;
+      for (int k = start[i]; k < start[i] + sb.size[i]; ++k) with_jacobian |= order[k] < jacobian_below;
     sample_batch(pv, D, sb, i, value, with_jacobian ? jacobian : nullptr);
   }
 }

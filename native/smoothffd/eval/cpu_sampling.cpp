@@ -4,6 +4,7 @@
 #include <numeric>
 #include <stdexcept>
 
+#include "smoothffd/core/parallel.hpp"
 #include "smoothffd/eval/lanes.hpp"
 #include "smoothffd/eval/stages.hpp"
 
@@ -63,6 +64,7 @@ SampleBatches make_sample_batches(const Plan& plan, const std::vector<int>* only
       const uint8_t terms = (uint8_t)box_terms(plan, key_of[b]);
       for (int i = first[b]; i < first[b + 1]; i += kLanes) {
         sb.start.push_back(i);
+        sb.size.push_back((uint8_t)std::min(kLanes, first[b + 1] - i));
         sb.terms.push_back(terms);
       }
     }
@@ -80,11 +82,58 @@ SampleBatches make_sample_batches(const Plan& plan, const std::vector<int>* only
     int j = i;
     while (j < S && j - i < kLanes && plan.sample_piece[sb.order[j]] == key) ++j;
     sb.start.push_back(i);
+    sb.size.push_back((uint8_t)(j - i));
     sb.terms.push_back((uint8_t)box_terms(plan, key));
     i = j;
   }
   sb.start.push_back(S);
   return sb;
+}
+
+bool repiece_sample_batches(const Plan& plan, SampleBatches& sb, std::vector<int>& slot) {
+  const std::vector<int>& moved = plan.repieced_samples;
+  if (moved.empty()) return true;
+  if ((long long)sb.order.size() < plan.samples) return false;  // not all the samples' batches
+  const long long made = sb.count() - sb.appended;
+  if (slot.empty()) {
+    slot.assign(plan.samples, -1);
+    const int* order = sb.order.data();
+    parallel_for((long long)sb.order.size(), default_threads(), [&](long long b, long long e) {
+      for (long long i = b; i < e; ++i)
+        if (order[i] >= 0) slot[order[i]] = (int)i;
+    });
+  }
+  // Out of their batches.
+  for (int s : moved) {
+    const int i = slot[s];
+    if (i < 0) return false;
+    const long long b = std::upper_bound(sb.start.begin(), sb.start.end(), i) - sb.start.begin() - 1;
+    const int last = sb.start[b] + sb.size[b] - 1;
+    sb.order[i] = sb.order[last];
+    slot[sb.order[i]] = i;
+    sb.order[last] = -1;
+    --sb.size[b];
+  }
+  // Into new ones, by box (plan order within one).
+  std::vector<int> by_box(moved);
+  std::stable_sort(by_box.begin(), by_box.end(),
+                   [&](int x, int y) { return plan.sample_piece[x] < plan.sample_piece[y]; });
+  sb.start.pop_back();
+  for (size_t i = 0; i < by_box.size();) {
+    const uint32_t key = plan.sample_piece[by_box[i]];
+    size_t j = i;
+    while (j < by_box.size() && j - i < (size_t)kLanes && plan.sample_piece[by_box[j]] == key) ++j;
+    sb.start.push_back((int)sb.order.size());
+    sb.size.push_back((uint8_t)(j - i));
+    sb.terms.push_back((uint8_t)box_terms(plan, key));
+    for (; i < j; ++i) {
+      slot[by_box[i]] = (int)sb.order.size();
+      sb.order.push_back(by_box[i]);
+    }
+    ++sb.appended;
+  }
+  sb.start.push_back((int)sb.order.size());
+  return sb.appended <= made / 8 + 64;
 }
 
 #endif  // SFFD_ISA_PRIMARY
@@ -147,7 +196,8 @@ void sample_box(int terms, const PlanView& pv, const float* D, const int* ids, i
 void sample_batch(const PlanView& pv, const float* D, const SampleBatches& sb, long long b,
                   float* value, float* jacobian) {
   const int* ids = sb.order.data() + sb.start[b];
-  const int n = sb.start[b + 1] - sb.start[b];
+  const int n = sb.size[b];
+  if (n == 0) return;
   if (pv.components == 4) {
     if (jacobian) return sample_box<true, 4>(sb.terms[b], pv, D, ids, n, value, jacobian);
     return sample_box<false, 4>(sb.terms[b], pv, D, ids, n, value, nullptr);

@@ -17,14 +17,30 @@
 namespace sffd {
 
 struct SampleBatches {
-  std::vector<int> order;      // sample ids grouped by box
-  std::vector<int> start;      // batch b is order[start[b] .. start[b + 1]): one box, <= kLanes
+  std::vector<int> order;      // sample ids grouped by box (-1: a place a sample has left)
+  std::vector<int> start;      // batch b is order[start[b] .. start[b] + size[b]): one box;
+                               // start[count()] = order.size()
+  std::vector<uint8_t> size;   // per batch: its samples, at most kLanes (start[b + 1] - start[b]
+                               // as made; fewer, or none, once repiece_sample_batches took
+                               // samples out)
   std::vector<uint8_t> terms;  // per batch: terms an axis the contraction runs with (1-4, 6)
+  long long appended = 0;      // batches repiece_sample_batches added
   long long count() const { return (long long)terms.size(); }
 };
 
 // only: the samples to batch, in plan order (null: all of them).
 SampleBatches make_sample_batches(const Plan& plan, const std::vector<int>* only = nullptr);
+
+// The batches of `plan` from those of all the samples of the plan it followed
+// (plan.samples_base_id), which sb holds: each of plan.repieced_samples is taken out of its
+// batch (the batch's last sample moves into its place) and batched again after the others,
+// with the samples of its new box. A sample's value does not depend on the others in its
+// batch, so a frame gives the same bits as with make_sample_batches(plan). slot: each sample's
+// place in sb.order, made here when empty and kept up to date. Returns false, leaving sb and
+// slot to be made anew, where the batches added since sb was made would be more than an
+// eighth of those it was made with, and 64 (each further frame would pay for the half-empty
+// ones).
+bool repiece_sample_batches(const Plan& plan, SampleBatches& sb, std::vector<int>& slot);
 
 SFFD_ISA_BEGIN  // one copy per ISA (core/isa.hpp)
 

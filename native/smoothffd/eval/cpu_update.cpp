@@ -96,7 +96,7 @@ class BlockTable {
 std::vector<ControlBlock> batch_blocks(const SampleBatches& sb, const SampleBlocks& blocks) {
   std::vector<ControlBlock> out(sb.count(), kNothing);
   for (long long b = 0; b < sb.count(); ++b)
-    if (sb.start[b] < sb.start[b + 1]) out[b] = blocks(sb.order[sb.start[b]]);
+    if (sb.size[b] > 0) out[b] = blocks(sb.order[sb.start[b]]);
   return out;
 }
 

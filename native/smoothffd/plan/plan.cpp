@@ -1,6 +1,7 @@
 #include "smoothffd/plan/plan.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -58,6 +59,11 @@ void check_memory_limit(const PlanOptions& opt, const InputMesh& mesh, const Lat
 }
 
 }  // namespace
+
+uint64_t new_table_id() {
+  static std::atomic<uint64_t> last{0};
+  return ++last;
+}
 
 size_t Plan::bytes() const {
   size_t b = 0;
@@ -202,6 +208,7 @@ Plan build(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions&
     plan.output_triangles = q.output_triangles;
     plan.render_vertices = q.render_vertices;
     plan.level = opt.level;
+    plan.topology_id = q.topology_id;
     output_rest_positions(plan, tess, clip.flat, plan.rest_positions);
     output_uvs(plan, mesh.corner_uv, plan.uvs);
     build_lattice_tables(plan, lattice);
@@ -212,6 +219,7 @@ Plan build(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions&
   build_output_topology(plan, tess, clip.flat, mesh.corner_uv);
   timer.lap("tessellation");
   build_render_vertices(plan, plan.sub_vertices, tess, sub.face_count);
+  plan.topology_id = new_table_id();
   timer.lap("render_vertices");
 
   // 6. The lattice tables for the evaluators.

@@ -131,6 +131,18 @@ struct Plan {
                             // the geometry, which cannot follow it (bound_render_normals)
   int turned_sub_normals = 0;  // patch corners turned again on the sub-mesh (its own bound)
   bool pieces_held = false;    // follow_plan held the previous plan's pieces (hold_clip)
+  // What the CPU evaluator derives its own tables from, named so that an evaluator of a plan
+  // that followed a pose can take over its predecessor's (eval/cpu_evaluator.hpp): a new
+  // number (new_table_id) whenever a build computes them anew, the previous plan's where a
+  // follow keeps them.
+  uint64_t samples_id = 0;   // the samples' count, indexing (patch_samples, edge_constraint)
+                             // and lattice pieces (sample_piece)
+  uint64_t samples_base_id = 0;       // the followed plan's samples_id where these samples are
+                                      // its samples (the same count and indexing), else 0
+  std::vector<int> repieced_samples;  // then the samples whose lattice pieces are not those
+                                      // they had there (ascending)
+  uint64_t topology_id = 0;  // the output topology and render vertices (output_owner,
+                             // render_owner and their counts)
 
   // --- lattice tables
   std::vector<AxisPieceF> pieces;  // the three axes' pieces, concatenated
@@ -225,6 +237,9 @@ struct Plan {
 
   size_t bytes() const;  // host memory held
 };
+
+// A number no earlier call returned (in this process): Plan::samples_id, topology_id.
+uint64_t new_table_id();
 
 // Builds the plan. Throws std::invalid_argument on invalid input. triangulation: the input's
 // polygons as these triangles of corners (checked: each three distinct corners of its face),

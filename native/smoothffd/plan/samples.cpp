@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <mutex>
 #include <stdexcept>
 
 #include "smoothffd/core/cancel.hpp"
@@ -18,18 +19,21 @@ constexpr uint32_t kNoHint = ~0u;
 // Sample s's pieces (and, with local, its local coordinates) from its position: the double
 // one with local, else the float one the evaluators read (plan.sample_position, already
 // written). hint: a packed guess of its pieces (kNoHint: none).
-void locate_sample(Plan& plan, const LatticeSpec& lattice, long long s, const double* exact, bool local, uint32_t hint) {
+// Returns whether the pieces found are the hint.
+bool locate_sample(Plan& plan, const LatticeSpec& lattice, long long s, const double* exact, bool local, uint32_t hint) {
   double pos[3], prm[3];
   int pc[3];
   for (int i = 0; i < 3; ++i) pos[i] = local ? exact[i] : plan.sample_position[3 * s + i];
   lattice.to_param(pos, prm);
   for (int a = 0; a < 3; ++a) pc[a] = lattice.axes[a].find_piece(prm[a], hint == kNoHint ? -1 : int((hint >> (10 * a)) & 1023u));
-  plan.sample_piece[s] = pack_pieces(pc);
+  const uint32_t packed = pack_pieces(pc);
+  plan.sample_piece[s] = packed;
   if (local)
     for (int a = 0; a < 3; ++a) {
       const AxisPiece& piece = lattice.axes[a].pieces()[pc[a]];
       plan.sample_local[3 * s + a] = piece.degree == 0 ? 0.0f : (float)((prm[a] - piece.origin) / piece.scale);
     }
+  return packed == hint;
 }
 
 }  // namespace
@@ -70,27 +74,41 @@ std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVer
     if (local) plan.sample_local.resize(3 * S);
     else plan.sample_local.clear();
   }
-  auto put_sample = [&](long long s, const double* pos, double w) {
+  // The samples not in the pieces they had in the held plan: each thread's, then joined.
+  std::mutex repieced_mutex;
+  std::vector<int> repieced;
+  auto put_sample = [&](long long s, const double* pos, double w, std::vector<int>& moved_piece) {
     for (int i = 0; i < 3; ++i) plan.sample_position[3 * s + i] = (float)pos[i];
     if (keep_exact)
       for (int i = 0; i < 3; ++i) sample_exact[3 * s + i] = pos[i];
     plan.sample_weight[s] = (float)w;
-    if (lattice) locate_sample(plan, *lattice, s, pos, local, piece_hint ? (*piece_hint)[s] : kNoHint);
+    if (lattice && !locate_sample(plan, *lattice, s, pos, local, piece_hint ? (*piece_hint)[s] : kNoHint) &&
+        piece_hint)
+      moved_piece.push_back((int)s);
+  };
+  auto join = [&](std::vector<int>& moved_piece) {
+    if (moved_piece.empty()) return;
+    std::lock_guard<std::mutex> lock(repieced_mutex);
+    repieced.insert(repieced.end(), moved_piece.begin(), moved_piece.end());
   };
   // Each sub-vertex, edge and patch writes its own samples: in parallel, the same values.
   const int threads = default_threads();
   parallel_for(SV, threads, [&](long long b, long long e) {
-    for (long long v = b; v < e; ++v) put_sample(v, &moved[3 * (size_t)v], sub_weight[v]);
+    std::vector<int> moved_piece;
+    for (long long v = b; v < e; ++v) put_sample(v, &moved[3 * (size_t)v], sub_weight[v], moved_piece);
+    join(moved_piece);
   });
   parallel_for(E, threads, [&](long long eb, long long ee) {
+    std::vector<int> moved_piece;
     for (long long e = eb; e < ee; ++e) {
       int a = plan.edge_vertex[2 * e], b = plan.edge_vertex[2 * e + 1];
       for (int j = 0; j < ES; ++j) {
         double t = edge_num[j] / double(N3), pos[3];
         for (int i = 0; i < 3; ++i) pos[i] = (1 - t) * moved[3 * (size_t)a + i] + t * moved[3 * (size_t)b + i];
-        put_sample(SV + e * ES + j, pos, (1 - t) * sub_weight[a] + t * sub_weight[b]);
+        put_sample(SV + e * ES + j, pos, (1 - t) * sub_weight[a] + t * sub_weight[b], moved_piece);
       }
     }
+    join(moved_piece);
   });
   // The inside columns (all numerators positive), in column order: the patches' own samples.
   std::vector<int> inside;
@@ -134,6 +152,7 @@ std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVer
     }
   }
   parallel_for(P, threads, [&](long long pb, long long pe) {
+    std::vector<int> moved_piece;
     for (long long p = pb; p < pe; ++p) {
       const int* cv = &plan.patch_vertex[3 * p];
       for (int o = 0; o < IS; ++o) {
@@ -145,13 +164,30 @@ std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVer
           for (int c = 0; c < 3; ++c) pos[i] += b[c] * moved[3 * (size_t)cv[c] + i];
         }
         for (int c = 0; c < 3; ++c) w += b[c] * sub_weight[cv[c]];
-        put_sample(SV + (long long)E * ES + p * IS + o, pos, w);
+        put_sample(SV + (long long)E * ES + p * IS + o, pos, w, moved_piece);
       }
     }
+    join(moved_piece);
   });
   plan.fit_matrix.assign(fit.M_r.begin(), fit.M_r.end());
   plan.column_bary.resize(3 * (size_t)K);
   for (int i = 0; i < 3 * K; ++i) plan.column_bary[i] = (float)(fit.numerator[i] / double(N3));
+  // The held plan's samples_id where its indexing is taken over and every sample is in the
+  // piece it had there (the same sample count, indexing and pieces); else a new one, and where
+  // the indexing is the held plan's, the samples whose pieces are not.
+  plan.repieced_samples.clear();
+  if (held && piece_hint && repieced.empty()) {
+    plan.samples_id = held->samples_id;
+    plan.samples_base_id = held->samples_base_id;
+    plan.repieced_samples = held->repieced_samples;
+  } else {
+    plan.samples_id = new_table_id();
+    plan.samples_base_id = held && piece_hint ? held->samples_id : 0;
+    if (plan.samples_base_id) {
+      std::sort(repieced.begin(), repieced.end());
+      plan.repieced_samples = std::move(repieced);
+    }
+  }
   plan.samples = (int)S;
   plan.fit_degree = n;
   plan.columns = K;

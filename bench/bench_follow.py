@@ -5,7 +5,8 @@ a moving input cost before plans could follow), all in one run.
 
 The pose: W1's torus bent (z grows with x^2) and twisted about z (the angle grows with x), both
 swinging with the frame, so every vertex moves every frame by about 1e-3 of the torus's size,
-as a character's skin moves at 24 frames a second.
+as a character's skin moves at 24 frames a second. Every frame is written into the arrays of
+the frame before (deform(out=...), as the Blender add-on does) where their shapes allow.
 
     python3 bench/bench_follow.py [--levels 4 10] [--frames 12] [--device cpu|cuda]
 """
@@ -46,24 +47,24 @@ def run(level, frames, device):
     mesh, lattice = w1_mesh(), w1_lattice(0)
     poses = [pose(mesh, f + 1) for f in range(frames)]
     d = smoothffd.Deformer(mesh, lattice, level=level, device=device)
-    d.deform()
+    r = d.deform()
     static = []
     for _ in range(frames):
         t = time.perf_counter()
-        d.deform()
+        r = d.deform(out=r)
         static.append(time.perf_counter() - t)
     moving, follow, kept = [], [], 0
     for m in poses:
         t = time.perf_counter()
         kept += d.follow(m)
         t1 = time.perf_counter()
-        d.deform()
+        r = d.deform(out=r)
         moving.append(time.perf_counter() - t)
         follow.append(t1 - t)
     # The same poses followed holding the pieces (Deformer.follow(hold=True)), from the same
     # first plan.
     h = smoothffd.Deformer(mesh, lattice, level=level, device=device)
-    h.deform()
+    r = h.deform()
     holding, held, held_kept, held_follow, held_stages = [], 0, 0, [], {}
     for m in poses:
         t = time.perf_counter()
@@ -73,7 +74,7 @@ def run(level, frames, device):
             held += 1
             held_follow.append(t1 - t)
             held_stages = h.plan.build_ms
-        h.deform()
+        r = h.deform(out=r)
         holding.append(time.perf_counter() - t)
     replan = []
     for m in poses[: max(3, frames // 3)]:

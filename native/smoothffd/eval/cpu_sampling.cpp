@@ -95,6 +95,8 @@ bool repiece_sample_batches(const Plan& plan, SampleBatches& sb, std::vector<int
   if (moved.empty()) return true;
   if ((long long)sb.order.size() < plan.samples) return false;  // not all the samples' batches
   const long long made = sb.count() - sb.appended;
+  // More samples to move than the batches still allowed (below) could hold: made anew.
+  if ((long long)moved.size() > (long long)kLanes * (made / 8 + 64 - sb.appended)) return false;
   if (slot.empty()) {
     slot.assign(plan.samples, -1);
     const int* order = sb.order.data();

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cstdint>
 
+#include "smoothffd/core/parallel.hpp"
+
 namespace sffd {
 
 EdgeTable build_edges(const std::vector<int>& tv) {
@@ -51,17 +53,20 @@ EdgeTable build_edges(const std::vector<int>& tv) {
 std::vector<uint8_t> classify_sharp_ends(const EdgeTable& e, const std::vector<int>& tv,
                                          const std::vector<double>& cn, double cos_tol) {
   std::vector<uint8_t> flags(e.count(), 0);
-  for (int id = 0; id < e.count(); ++id) {
-    if (e.face_count[id] != 2) continue;
-    int t0 = e.side[2 * id], t1 = e.side[2 * id + 1];
-    for (int end = 0; end < 2; ++end) {
-      int v = e.vertex[2 * id + end];
-      const double* n0 = &cn[9 * (size_t)t0 + 3 * slot_of(tv, t0, v)];
-      const double* n1 = &cn[9 * (size_t)t1 + 3 * slot_of(tv, t1, v)];
-      double d = n0[0] * n1[0] + n0[1] * n1[1] + n0[2] * n1[2];
-      if (!(d >= cos_tol)) flags[id] |= uint8_t(1u << end);
+  // Each edge on its own: in parallel, the same values.
+  parallel_for(e.count(), default_threads(), [&](long long b, long long end_id) {
+    for (long long id = b; id < end_id; ++id) {
+      if (e.face_count[id] != 2) continue;
+      int t0 = e.side[2 * id], t1 = e.side[2 * id + 1];
+      for (int end = 0; end < 2; ++end) {
+        int v = e.vertex[2 * id + end];
+        const double* n0 = &cn[9 * (size_t)t0 + 3 * slot_of(tv, t0, v)];
+        const double* n1 = &cn[9 * (size_t)t1 + 3 * slot_of(tv, t1, v)];
+        double d = n0[0] * n1[0] + n0[1] * n1[1] + n0[2] * n1[2];
+        if (!(d >= cos_tol)) flags[id] |= uint8_t(1u << end);
+      }
     }
-  }
+  });
   return flags;
 }
 

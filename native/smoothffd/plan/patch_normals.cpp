@@ -72,10 +72,12 @@ std::vector<uint8_t> bound_patch_normals(Plan& plan, PatchNormals normals, const
   for (uint8_t f : turned) plan.turned_sub_normals += f;
   plan.patch_adjust_normal.resize(9 * (size_t)P);
   plan.patch_render_normal.resize(9 * (size_t)P);
-  for (size_t i = 0; i < plan.patch_adjust_normal.size(); ++i) {
-    plan.patch_adjust_normal[i] = (float)sub_adjust.corner[i];
-    plan.patch_render_normal[i] = (float)render[i];
-  }
+  parallel_for((long long)plan.patch_adjust_normal.size(), default_threads(), [&](long long b, long long e) {
+    for (long long i = b; i < e; ++i) {
+      plan.patch_adjust_normal[i] = (float)sub_adjust.corner[i];
+      plan.patch_render_normal[i] = (float)render[i];
+    }
+  });
   return sharp;
 }
 

@@ -1,6 +1,7 @@
 #include "smoothffd/plan/rest_surface.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 
 #include "smoothffd/core/parallel.hpp"
@@ -54,21 +55,23 @@ AdjustNormals::AdjustNormals(const std::vector<double>& X, const std::vector<int
   const size_t T = tv.size() / 3, V = X.size() / 3;
   own.assign(3 * T, 0.0);
   has_own.assign(T, 0);
-  for (size_t t = 0; t < T; ++t) {
-    const double *a = &X[3 * (size_t)tv[3 * t]], *b = &X[3 * (size_t)tv[3 * t + 1]], *c = &X[3 * (size_t)tv[3 * t + 2]];
-    double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-    double* n = &own[3 * t];
-    n[0] = u[1] * w[2] - u[2] * w[1];
-    n[1] = u[2] * w[0] - u[0] * w[2];
-    n[2] = u[0] * w[1] - u[1] * w[0];
-    // Degenerate triangles have no orientation of their own: they keep the input's normals.
-    const double scale = dot3(u, u) + dot3(w, w);
-    has_own[t] = std::sqrt(dot3(n, n)) > 1e-12 * scale && normalize3(n);
-  }
   trust.assign(V, 1.0);
   corner.assign(base.size(), 0.0);
-  for (size_t t = 0; t < T; ++t)
-    for (int k = 0; k < 3; ++k) update(tv, (int)t, k);
+  // Each triangle on its own: in parallel, the same values.
+  parallel_for((long long)T, default_threads(), [&](long long tb, long long te) {
+    for (long long t = tb; t < te; ++t) {
+      const double *a = &X[3 * (size_t)tv[3 * t]], *b = &X[3 * (size_t)tv[3 * t + 1]], *c = &X[3 * (size_t)tv[3 * t + 2]];
+      double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+      double* n = &own[3 * t];
+      n[0] = u[1] * w[2] - u[2] * w[1];
+      n[1] = u[2] * w[0] - u[0] * w[2];
+      n[2] = u[0] * w[1] - u[1] * w[0];
+      // Degenerate triangles have no orientation of their own: they keep the input's normals.
+      const double scale = dot3(u, u) + dot3(w, w);
+      has_own[t] = std::sqrt(dot3(n, n)) > 1e-12 * scale && normalize3(n);
+      for (int k = 0; k < 3; ++k) update(tv, (int)t, k);
+    }
+  });
 }
 
 void AdjustNormals::update(const std::vector<int>& tv, int t, int k) {
@@ -302,13 +305,15 @@ int bound_adjust_normals(const std::vector<double>& X, const std::vector<int>& t
     }
     if (!changed) break;
     // The corners at the lowered vertices, and the patches they reach (their edges end
-    // there): every triangle at a lowered vertex.
-    for (int t = 0; t < T; ++t)
-      for (int k = 0; k < 3; ++k)
-        if (lowered[tv[3 * (size_t)t + k]]) {
-          an.update(tv, t, k);
-          dirty[t] = 1;
-        }
+    // there): every triangle at a lowered vertex (each on its own, in parallel).
+    parallel_for(T, default_threads(), [&](long long b, long long end) {
+      for (long long t = b; t < end; ++t)
+        for (int k = 0; k < 3; ++k)
+          if (lowered[tv[3 * (size_t)t + k]]) {
+            an.update(tv, (int)t, k);
+            dirty[t] = 1;
+          }
+    });
   }
   int bounded = 0;
   for (int v = 0; v < V; ++v) bounded += an.trust[v] < 1.0;
@@ -316,24 +321,29 @@ int bound_adjust_normals(const std::vector<double>& X, const std::vector<int>& t
 }
 
 int bound_render_normals(const AdjustNormals& an, std::vector<double>& render, std::vector<uint8_t>* turned) {
-  int count = 0;
-  for (size_t c = 0; c < render.size() / 3; ++c) {
-    double* r = &render[3 * c];
-    const double* a = &an.corner[3 * c];
-    const double d = dot3(r, a);
-    if (d >= kShadeCos - 1e-9) continue;
-    if (turned) (*turned)[c] = 1;
-    // r' = cos(theta) a + sin(theta) u, u the unit part of r across a (a itself where r is
-    // opposite to a).
-    double u[3] = {r[0] - d * a[0], r[1] - d * a[1], r[2] - d * a[2]};
-    const double s = std::sqrt(1.0 - kShadeCos * kShadeCos);
-    if (normalize3(u))
-      for (int i = 0; i < 3; ++i) r[i] = kShadeCos * a[i] + s * u[i];
-    else
-      for (int i = 0; i < 3; ++i) r[i] = a[i];
-    ++count;
-  }
-  return count;
+  std::atomic<int> count{0};
+  // Each corner on its own: in parallel, the same values.
+  parallel_for((long long)(render.size() / 3), default_threads(), [&](long long b, long long e) {
+    int n = 0;
+    for (long long c = b; c < e; ++c) {
+      double* r = &render[3 * c];
+      const double* a = &an.corner[3 * c];
+      const double d = dot3(r, a);
+      if (d >= kShadeCos - 1e-9) continue;
+      if (turned) (*turned)[c] = 1;
+      // r' = cos(theta) a + sin(theta) u, u the unit part of r across a (a itself where r is
+      // opposite to a).
+      double u[3] = {r[0] - d * a[0], r[1] - d * a[1], r[2] - d * a[2]};
+      const double s = std::sqrt(1.0 - kShadeCos * kShadeCos);
+      if (normalize3(u))
+        for (int i = 0; i < 3; ++i) r[i] = kShadeCos * a[i] + s * u[i];
+      else
+        for (int i = 0; i < 3; ++i) r[i] = a[i];
+      ++n;
+    }
+    count += n;
+  });
+  return count.load();
 }
 
 RestSurface build_rest_surface(const std::vector<double>& X, const std::vector<int>& tv,

@@ -273,6 +273,41 @@ TEST(Follow, HoldKeepsThePiecesWhileTheyStayInTheirBoxes) {
   expect_same_plan(held, build_plan_like(shifted(0.06), s, level(3), before));
 }
 
+// The edge tables of the input triangles and of the sub-mesh depend on connectivity alone: a
+// follow takes them over while the triangles and pieces are the same, and makes new ones
+// (those of its own triangles) where they are not.
+TEST(Follow, KeepsTheEdgeTablesOfTheSameTriangles) {
+  const LatticeSpec s = bspline_box(2, 4);
+  InputMesh m = cube_with_uvs();
+  Plan plan = build_plan(m, s, level(2));
+  ASSERT_TRUE(plan.input_edges && plan.sub_edges);
+  const auto input = plan.input_edges, sub = plan.sub_edges;
+  EXPECT_EQ(sub->tri_vertex, plan.patch_vertex);
+  InputMesh moved = m;
+  for (double& x : moved.positions) x += 0.001;
+  ASSERT_TRUE(follow_plan(plan, moved, s, level(2)));
+  EXPECT_EQ(plan.input_edges, input);
+  EXPECT_EQ(plan.sub_edges, sub);
+  moved.positions[0] = 0.6;  // vertex 0 past x = 0.5: other pieces
+  const Plan before = plan;
+  ASSERT_FALSE(follow_plan(plan, moved, s, level(2)));
+  EXPECT_EQ(plan.input_edges, input);
+  ASSERT_NE(plan.sub_edges, sub);
+  EXPECT_EQ(plan.sub_edges->tri_vertex, plan.patch_vertex);
+  const EdgeTable fresh = build_edges(plan.patch_vertex);
+  EXPECT_EQ(plan.sub_edges->edges.vertex, fresh.vertex);
+  EXPECT_EQ(plan.sub_edges->edges.side, fresh.side);
+  EXPECT_EQ(plan.sub_edges->edges.face_count, fresh.face_count);
+  EXPECT_EQ(plan.sub_edges->edges.tri_edge, fresh.tri_edge);
+  expect_same_plan(plan, build_plan_like(moved, s, level(2), before));
+  // Another mesh of as many vertices and corners: not the first plan's triangles, whose table
+  // is not taken.
+  InputMesh other = m;
+  std::swap(other.corner_vertex[0], other.corner_vertex[1]);
+  const Plan other_plan = build_plan_like(other, s, level(2), plan);
+  EXPECT_NE(other_plan.input_edges, input);
+}
+
 // A CPU evaluator takes its predecessor's sample batches and output tables over (through their
 // BufferPool) exactly where the plan that followed a pose kept what they are made from, and
 // frames bitwise as an evaluator that made its own.

@@ -50,6 +50,12 @@ EdgeTable build_edges(const std::vector<int>& tv) {
   return e;
 }
 
+std::shared_ptr<const TriangleEdges> edges_of(const std::vector<int>& tri_vertex,
+                                              const std::shared_ptr<const TriangleEdges>& kept) {
+  if (kept && kept->tri_vertex == tri_vertex) return kept;
+  return std::make_shared<const TriangleEdges>(TriangleEdges{tri_vertex, build_edges(tri_vertex)});
+}
+
 std::vector<uint8_t> classify_sharp_ends(const EdgeTable& e, const std::vector<int>& tv,
                                          const std::vector<double>& cn, double cos_tol) {
   std::vector<uint8_t> flags(e.count(), 0);

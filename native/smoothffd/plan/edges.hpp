@@ -3,6 +3,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 namespace sffd {
@@ -17,6 +18,17 @@ struct EdgeTable {
 
 // tri_vertex: #T x 3. Sort-based, deterministic: edges numbered by (a, b).
 EdgeTable build_edges(const std::vector<int>& tri_vertex);
+
+// An edge table with the triangles it is of, which a plan keeps for the next pose of the same
+// triangles (follow_plan: they depend on connectivity alone).
+struct TriangleEdges {
+  std::vector<int> tri_vertex;
+  EdgeTable edges;
+};
+
+// kept where it is of these very triangles, else a new one of them.
+std::shared_ptr<const TriangleEdges> edges_of(const std::vector<int>& tri_vertex,
+                                              const std::shared_ptr<const TriangleEdges>& kept = nullptr);
 
 // Slot (0..2) of vertex v in triangle t, or -1.
 inline int slot_of(const std::vector<int>& tri_vertex, int t, int v) {

@@ -7,7 +7,9 @@
 
 namespace sffd {
 
-InputSurface build_input_surface(const InputMesh& mesh, double cos_tol, const Triangulation* triangulation) {
+InputSurface build_input_surface(const InputMesh& mesh, double cos_tol, const Triangulation* triangulation,
+                                 const std::shared_ptr<const TriangleEdges>& kept_edges,
+                                 std::shared_ptr<const TriangleEdges>* edges_out) {
   Triangulation tr;
   if (triangulation) {
     check_triangulation(mesh, *triangulation);
@@ -18,7 +20,9 @@ InputSurface build_input_surface(const InputMesh& mesh, double cos_tol, const Tr
   std::vector<int> tv(tr.corners.size());
   for (size_t i = 0; i < tv.size(); ++i) tv[i] = mesh.corner_vertex[tr.corners[i]];
   std::vector<double> tcn = triangle_corner_normals(mesh, tr, tv);
-  EdgeTable edges = build_edges(tv);
+  std::shared_ptr<const TriangleEdges> table = edges_of(tv, kept_edges);
+  EdgeTable edges = table->edges;
+  if (edges_out) *edges_out = std::move(table);
   std::vector<uint8_t> sharp = classify_sharp_ends(edges, tv, tcn, cos_tol);
   AdjustNormals adjust(mesh.positions, tv, tcn, flat_triangles(mesh, tr, tcn, cos_tol));
   return InputSurface{std::move(tr), std::move(tv), std::move(tcn), std::move(edges), std::move(sharp),

@@ -27,6 +27,10 @@ struct InputSurface {
 // the input's polygons as these triangles (a plan's input_triangle_corner and
 // input_triangle_face, checked against the mesh), or null: triangulate_polygons of the mesh's
 // own shape.
-InputSurface build_input_surface(const InputMesh& mesh, double cos_tol, const Triangulation* triangulation = nullptr);
+// kept_edges: an earlier plan's edge table of its input triangles (Plan::input_edges), taken
+// where it is of the same triangles; *edges_out (if given) gets the table used.
+InputSurface build_input_surface(const InputMesh& mesh, double cos_tol, const Triangulation* triangulation = nullptr,
+                                 const std::shared_ptr<const TriangleEdges>& kept_edges = nullptr,
+                                 std::shared_ptr<const TriangleEdges>* edges_out = nullptr);
 
 }  // namespace sffd

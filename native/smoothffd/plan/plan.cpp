@@ -80,6 +80,10 @@ size_t Plan::bytes() const {
   b += 8 * (centre_box.size() + centre_start.size());
   b += 8 * patch_bary.size();
   b += patch_edge_reversed.size() + edge_slot.size() + edge_flags.size();
+  for (const auto& t : {input_edges, sub_edges})
+    if (t)
+      b += 4 * (t->tri_vertex.size() + t->edges.vertex.size() + t->edges.side.size() + t->edges.face_count.size() +
+                t->edges.tri_edge.size());
   return b;
 }
 
@@ -131,7 +135,8 @@ Plan build(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions&
   const double cos_tol = std::cos(opt.sharp_angle_degrees * M_PI / 180.0);
 
   // 1. The input surface: triangles, corner normals, sharp edge ends, flat faces.
-  InputSurface in = build_input_surface(mesh, cos_tol, triangulation);
+  InputSurface in = build_input_surface(mesh, cos_tol, triangulation, like ? like->input_edges : nullptr,
+                                        &plan.input_edges);
   timer.lap("triangulate");
 
   // 2. Knot-box clipping (the patch count, checked against the memory limit before any table of
@@ -160,7 +165,8 @@ Plan build(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions&
   // 3. Patches: where each lies on the input, its corner normals bounded on the sub-mesh, and
   // the sub-mesh's adjacency.
   build_patch_sources(plan, mesh, in.triangulation, clip);
-  EdgeTable sub = build_edges(clip.patch_vertex);
+  plan.sub_edges = edges_of(clip.patch_vertex, like ? like->sub_edges : nullptr);
+  const EdgeTable& sub = plan.sub_edges->edges;
   timer.lap("sources_edges");
   std::vector<uint8_t> sharp = bound_patch_normals(plan, patch_corner_normals(X, in, clip, rest.shade), sub,
                                                    sub_vertices.position, clip, in.adjust.flat, cos_tol);

@@ -32,6 +32,7 @@
 
 #include "smoothffd/lattice/lattice_spec.hpp"
 #include "smoothffd/mesh/triangulate.hpp"
+#include "smoothffd/plan/edges.hpp"
 
 namespace sffd {
 
@@ -231,6 +232,11 @@ struct Plan {
   std::vector<int> input_triangle_face;    // Tin: input face of each
   std::vector<int> patch_triangle;         // P: input triangle each patch is a piece of
   std::vector<double> patch_bary;          // P x 3 x 3: its corners' barycentric points there
+
+  // The edge tables of the input triangles and of the sub-mesh (patch_vertex), which depend on
+  // connectivity alone: a plan that follows (follow_plan) takes them over where its triangles
+  // and pieces are the same (shared with copies of this plan, read-only).
+  std::shared_ptr<const TriangleEdges> input_edges, sub_edges;
 
   // Timings of the plan's build stages (ms), for the stats.
   std::vector<std::pair<std::string, double>> build_ms;

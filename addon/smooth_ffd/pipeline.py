@@ -4,8 +4,26 @@ status (status). The handlers, the operators and the scripting API call update_m
 nothing here calls back up to them."""
 import time
 
+import numpy as np
+
 from . import frames, gather, holds, inputs, linked, live, objects, plans, stack_input, state, \
     statusline, write
+
+
+def _output_digest(st, res, material_index):
+    """The digest of a result's output topology (its triangles, face indices, vertex count and
+    faces' materials): the last one's where these equal its arrays value for value. A follow
+    whose sharp edges changed gives new arrays of the same triangles on every frame of a
+    waving character, and comparing them costs about a fortieth of hashing them (0.09 against
+    3.6 ms at 134k triangles)."""
+    parts = (res.triangles, res.face_index, material_index)
+    last = st.output_arrays
+    if last is not None and last[0] == len(res.positions) and all(
+            np.array_equal(a, b) for a, b in zip(parts, last[1])):
+        return last[2]
+    digest = inputs.digest(res.triangles, res.face_index, len(res.positions), material_index)
+    st.output_arrays = (len(res.positions), parts, digest)
+    return digest
 
 
 def update_modifier(obj, mod, p):
@@ -87,8 +105,7 @@ def update_modifier(obj, mod, p):
             # (plans.follow). An adaptive frame may change it on any update. The sharp edges
             # apart: where only they change (a follow that held the pieces while an edge's
             # normals split or joined) the mesh keeps its triangles and gets the new flags.
-            output = inputs.digest(res.triangles, res.face_index, len(res.positions),
-                                   got.source.material_index)
+            output = _output_digest(st, res, got.source.material_index)
             sharp = inputs.digest(res.sharp_edges)
             if tess.adaptive and (output, sharp) != (st.output[1], st.sharp):
                 st.scratch = (None, {})   # write_normals' per-topology facts

@@ -54,6 +54,7 @@ class ModifierState:
         self.result = None        # the last core Result: its arrays are reused (out=)
         self.scratch = (None, {})  # (topology_token, meshio.write_normals' per-topology facts)
         self.output = (None, None)  # (plan_key, digest of that plan's output topology)
+        self.output_arrays = None  # (vertex count, arrays, digest) of the last output digested
         self.sharp = None         # digest of the last result's sharp edges (write.write_result)
         self.outs = {}            # layout -> the last result in it (out=; LAYOUT may change)
         self.status_base = None   # last "OK ..." status as (head, tail) (statusline.set_ok)

@@ -219,6 +219,35 @@ def test_pooled_evaluators_give_the_same_frames():
     assert np.array_equal(pos_a, pos_b) and np.array_equal(nrm_a, nrm_b)
 
 
+def test_a_held_follow_takes_the_evaluators_tables_over():
+    # A Deformer that follows holding the pieces gets a new CPU evaluator each pose, which takes
+    # its predecessor's sample batches over (the samples that changed lattice pieces batched
+    # again) and, where the output topology was kept, its output tables: its frames are
+    # bitwise those of an evaluator that made its own. (The first follow starts the pool: the
+    # evaluator of the first plan has none to leave its tables in.)
+    loaded = real.load("suzanne")
+    mesh = smoothffd.Mesh(loaded.positions, (loaded.corner_vertices, loaded.face_offsets))
+    lattice = real.lattice_for(mesh, degree=(2, 2, 2), mode="twist", amount=30.0)
+    values = _control_values_f32(lattice)
+    d = smoothffd.Deformer(mesh, lattice, level=LEVEL, device="cpu")
+    d.deform()
+    took_batches = took_tables = 0
+    for f in range(1, 11):
+        kept = d.follow(bend(mesh, 0.01 * f), hold=True)
+        ev = d._evaluator
+        assert ev.took_output_tables == (kept and f > 1)
+        # Held pieces, the same samples: their batches (a new clipping makes new samples).
+        assert ev.took_sample_batches == (d.plan.pieces_held and f > 1)
+        took_batches += ev.took_sample_batches
+        took_tables += ev.took_output_tables
+        del ev  # the next follow changes the plan, which no other evaluator may read then
+        res = d.deform()
+        own = _core.CpuEvaluator(d.plan, 0).evaluate(values)
+        assert np.array_equal(res.positions, own[0]) and np.array_equal(res.corner_normals, own[1])
+    print(f"of 10 follows: sample batches taken over {took_batches}, output tables {took_tables}")
+    assert took_batches >= 3 and took_tables >= 2
+
+
 def _blender_lattice_around(mesh, lattice_to_object, seed=3):
     """A 4x4x4 Blender lattice (B-spline interpolation) whose rest box spans the mesh's box, its
     points displaced; placed by lattice_to_object after the fit."""

@@ -658,8 +658,10 @@ PYBIND11_MODULE(_core, m) {
   py::class_<CpuEvaluator, std::shared_ptr<CpuEvaluator>> cpu(m, "CpuEvaluator");
   py::class_<BufferPool, std::shared_ptr<BufferPool>>(
       m, "BufferPool",
-      "Per-frame buffers handed from an evaluator to the next one given the same pool (a plan that "
-      "follows a moving input gets a new evaluator each frame): no fresh memory to fault in")
+      "Per-frame buffers, and the tables an evaluator derives from its plan, handed from an evaluator "
+      "to the next one given the same pool (a plan that follows a moving input gets a new evaluator "
+      "each frame): no fresh memory to fault in, and the sample batches and output tables taken "
+      "over where the followed plan kept what they are made from")
       .def(py::init<>())
       .def_property_readonly("bytes", &BufferPool::bytes, "memory kept for the next evaluator");
   cpu.def(py::init([](std::shared_ptr<Plan> plan, int threads, const std::string& isa,
@@ -670,6 +672,12 @@ PYBIND11_MODULE(_core, m) {
           py::arg("plan").none(false), py::arg("threads") = 0, py::kw_only(), py::arg("isa") = "auto",
           py::arg("pool") = nullptr, py::keep_alive<1, 2>())
       .def_property_readonly("threads", &CpuEvaluator::threads)
+      .def_property_readonly("took_sample_batches", &CpuEvaluator::took_sample_batches,
+                             "whether it took its sample batches over from the evaluator before it "
+                             "(pool), batching again only the samples whose lattice pieces changed")
+      .def_property_readonly("took_output_tables", &CpuEvaluator::took_output_tables,
+                             "whether it took its tables of the vertices each patch writes over from "
+                             "the evaluator before it (pool): the followed plan kept its output topology")
       .def_property_readonly("isa", &CpuEvaluator::isa,
                              "per-frame code path: 'x86-64-v2' (baseline) or 'x86-64-v3' (AVX2 + FMA)")
       .def_property_readonly("update_bytes", &CpuEvaluator::update_bytes,

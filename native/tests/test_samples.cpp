@@ -2,7 +2,9 @@
 // against hand-computed points, and each sample's lattice piece.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <random>
 #include <set>
 
 #include "smoothffd/plan/adjacency.hpp"
@@ -24,6 +26,31 @@ struct Square {
     const std::vector<int> pv = {0, 1, 2, 2, 1, 3};
     EdgeTable e = build_edges(pv);
     build_adjacency(plan, pv, e, std::vector<uint8_t>(e.count(), 0), {0, 1}, {0, 0});
+  }
+};
+
+// An n x n grid of quads, two patches each, its vertices wherever `place` puts them.
+struct Grid {
+  Plan plan;
+  SubVertices sub;
+  template <class Place>
+  Grid(int n, Place place) {
+    for (int j = 0; j <= n; ++j)
+      for (int i = 0; i <= n; ++i) {
+        const std::array<double, 3> x = place(i, j);
+        sub.position.insert(sub.position.end(), x.begin(), x.end());
+        sub.weight.push_back(1.0);
+      }
+    std::vector<int> pv;
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        const int a = j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
+        pv.insert(pv.end(), {a, b, d, a, d, c});
+      }
+    EdgeTable e = build_edges(pv);
+    std::vector<int> tri(pv.size() / 3);
+    for (size_t t = 0; t < tri.size(); ++t) tri[t] = (int)t;
+    build_adjacency(plan, pv, e, std::vector<uint8_t>(e.count(), 0), tri, std::vector<uint8_t>(tri.size(), 0));
   }
 };
 
@@ -190,4 +217,70 @@ TEST(Samples, LocatedInTheBuildAsByLocateSamples) {
       before = want;
     }
   }
+}
+
+TEST(Samples, CornersDeepInABoxLocateTheirSamplesAsTheSearch) {
+  // The samples of an edge or patch whose corners lie deep inside one lattice box take its
+  // pieces without a search (build_samples): the same pieces as locate_samples finds, for
+  // vertices on the knot planes, off them by 1e-12 to 1e-3 of a span either way, or anywhere.
+  // The box lies 100 units from the origin, where float positions resolve 8e-6 of a unit
+  // (more than many of those offsets), turned about two axes, so that a parameter mixes the
+  // three rounded coordinates: a sample between its corners may then lie outside their
+  // parameters by that much.
+  const double c = 100.5, k = 1.0;  // the box's centre and its side's inverse
+  const double t1 = 0.5, t2 = 0.3;
+  const double Q[3][3] = {{std::cos(t1), -std::sin(t1), 0},
+                          {std::sin(t1) * std::cos(t2), std::cos(t1) * std::cos(t2), -std::sin(t2)},
+                          {std::sin(t1) * std::sin(t2), std::cos(t1) * std::sin(t2), std::cos(t2)}};
+  LatticeSpec s = bspline_box(2, 5);  // planes at 1/3 and 2/3 of each parameter
+  for (int a = 0; a < 3; ++a) {
+    for (int i = 0; i < 3; ++i) s.object_to_param[a][i] = k * Q[a][i];
+    s.object_to_param[a][3] = 0.5 - k * (Q[a][0] + Q[a][1] + Q[a][2]) * c;  // the centre at 0.5
+  }
+  auto object = [&](const double u[3]) {  // x = c + Q^T (u - 0.5) / k
+    std::array<double, 3> x;
+    for (int i = 0; i < 3; ++i) {
+      x[i] = c;
+      for (int a = 0; a < 3; ++a) x[i] += Q[a][i] * (u[a] - 0.5) / k;
+    }
+    return x;
+  };
+  const double offsets[] = {0, 1e-12, -1e-12, 1e-9, -1e-9, 1e-7, -1e-7, 3e-6, -3e-6, 1e-5, -1e-5,
+                            5e-5, -5e-5, 1e-4, -1e-4, 1e-3, -1e-3};
+  const int n_off = (int)(sizeof(offsets) / sizeof(offsets[0]));
+  const FitTables fit = build_fit_tables(6);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> any(0.0, 1.0);
+  std::uniform_int_distribution<int> pick(0, 2 * n_off);
+  for (int trial = 0; trial < 12; ++trial) {
+    // Each parameter near a plane (half of them) or anywhere in the box.
+    auto parameter = [&]() {
+      const int j = pick(rng);
+      if (j >= n_off) return any(rng);
+      return (any(rng) < 0.5 ? 1.0 : 2.0) / 3.0 + offsets[j];
+    };
+    Grid g(12, [&](int, int) {
+      const double u[3] = {parameter(), parameter(), parameter()};
+      return object(u);
+    });
+    ASSERT_FALSE(needs_local_coordinates(s, g.sub.position));  // the pieces from float positions
+    Plan want = g.plan;
+    const std::vector<double> exact = build_samples(want, fit, g.sub);
+    locate_samples(want, s, exact);
+    Plan got = g.plan;
+    build_samples(got, fit, g.sub, &s, nullptr, false);
+    EXPECT_EQ(got.sample_piece, want.sample_piece) << trial;
+    EXPECT_EQ(got.sample_position, want.sample_position) << trial;
+  }
+  // A grid well inside one box: every sample there (the shortcut's case), as the search.
+  Grid inside(6, [&](int i, int j) {
+    const double u[3] = {0.4 + 0.03 * i, 0.4 + 0.03 * j, 0.5};
+    return object(u);
+  });
+  Plan want = inside.plan;
+  locate_samples(want, s, build_samples(want, fit, inside.sub));
+  Plan got = inside.plan;
+  build_samples(got, fit, inside.sub, &s, nullptr, false);
+  EXPECT_EQ(got.sample_piece, want.sample_piece);
+  EXPECT_EQ(std::set<uint32_t>(got.sample_piece.begin(), got.sample_piece.end()).size(), 1u);
 }

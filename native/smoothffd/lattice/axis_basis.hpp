@@ -53,6 +53,9 @@ class AxisBasis {
   // The same, tried first at `guess` (a piece index, or -1): where the span lies in that
   // piece (a point that moved a little since it was last located) no search.
   int find_piece(double s, int guess) const;
+  // Whether find_piece gives piece `pi` at every point within `margin` of s (pi's planes
+  // farther than margin plus find_piece's own rounding allowance from s).
+  bool inside_piece(double s, int pi, double margin) const;
 
   // Weights and d/ds of the terms of piece `pi` at s (arrays of kMaxTerms).
   void weights(int pi, double s, double* w, double* dw) const;
@@ -93,6 +96,16 @@ inline int AxisBasis::find_piece(double s, int guess) const {
       s - pieces_[lo].lo <= eps)
     --lo;
   return lo;
+}
+
+inline bool AxisBasis::inside_piece(double s, int pi, double margin) const {
+  const int last = (int)pieces_.size() - 1;
+  if (pi < 0 || pi > last || !(margin >= 0)) return false;
+  // find_piece's allowance at any point within margin of s.
+  const double eps = 1e-9 * extent_ + 8 * std::numeric_limits<double>::epsilon() * (std::abs(s) + margin);
+  if (pi > 0 && !(s - margin - pieces_[pi].lo > eps)) return false;  // also its degree-0 top rule
+  if (pi < last && !(pieces_[pi + 1].lo - (s + margin) > eps)) return false;
+  return true;
 }
 
 }  // namespace sffd

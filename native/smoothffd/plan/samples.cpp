@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <mutex>
 #include <stdexcept>
 
@@ -77,14 +78,23 @@ std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVer
   // The samples not in the pieces they had in the held plan: each thread's, then joined.
   std::mutex repieced_mutex;
   std::vector<int> repieced;
-  auto put_sample = [&](long long s, const double* pos, double w, std::vector<int>& moved_piece) {
+  // known: the sample's pieces where its corners tell them (below), else kNoHint: looked for.
+  auto put_sample = [&](long long s, const double* pos, double w, std::vector<int>& moved_piece,
+                        uint32_t known = kNoHint) {
     for (int i = 0; i < 3; ++i) plan.sample_position[3 * s + i] = (float)pos[i];
     if (keep_exact)
       for (int i = 0; i < 3; ++i) sample_exact[3 * s + i] = pos[i];
     plan.sample_weight[s] = (float)w;
-    if (lattice && !locate_sample(plan, *lattice, s, pos, local, piece_hint ? (*piece_hint)[s] : kNoHint) &&
-        piece_hint)
-      moved_piece.push_back((int)s);
+    if (!lattice) return;
+    const uint32_t hint = piece_hint ? (*piece_hint)[s] : kNoHint;
+    bool same;
+    if (known != kNoHint) {
+      plan.sample_piece[s] = known;
+      same = known == hint;
+    } else {
+      same = locate_sample(plan, *lattice, s, pos, local, hint);
+    }
+    if (!same && piece_hint) moved_piece.push_back((int)s);
   };
   auto join = [&](std::vector<int>& moved_piece) {
     if (moved_piece.empty()) return;
@@ -98,14 +108,54 @@ std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVer
     for (long long v = b; v < e; ++v) put_sample(v, &moved[3 * (size_t)v], sub_weight[v], moved_piece);
     join(moved_piece);
   });
+  // Where the samples are located from their float positions (no local coordinates): each
+  // sub-vertex deep inside its lattice box, so far from the box's planes that every convex
+  // combination of such points in one box, rounded to float and mapped to the lattice's
+  // parameters, is in that box (find_piece's answer there). The samples of an edge or a patch
+  // whose corners are all deep in one box take its pieces without a search: most of them.
+  std::vector<uint8_t> deep;
+  if (lattice && !local) {
+    double R = 0;
+    for (double x : moved) R = std::max(R, std::fabs(x));
+    // How far (in parameters) such a sample may lie outside its corners' computed parameters:
+    // the float rounding of its position and of theirs (2^-24 R each, times the map's row
+    // norm), and the double arithmetic, all with room to spare.
+    double margin[3];
+    for (int a = 0; a < 3; ++a) {
+      const double* A = lattice->object_to_param[a];
+      const double G = std::fabs(A[0]) + std::fabs(A[1]) + std::fabs(A[2]);
+      margin[a] = std::ldexp(G * R, -21) + 64 * std::numeric_limits<double>::epsilon() * (G * R + std::fabs(A[3]));
+    }
+    deep.assign(SV, 0);
+    parallel_for(SV, threads, [&](long long b, long long e) {
+      for (long long v = b; v < e; ++v) {
+        double pos[3], prm[3];
+        for (int i = 0; i < 3; ++i) pos[i] = plan.sample_position[3 * v + i];
+        lattice->to_param(pos, prm);
+        const uint32_t k = plan.sample_piece[v];
+        bool in = true;
+        for (int a = 0; a < 3 && in; ++a) in = lattice->axes[a].inside_piece(prm[a], int((k >> (10 * a)) & 1023u), margin[a]);
+        deep[v] = in;
+      }
+    });
+  }
+  // The pieces of the box the given corners are all deep in, else kNoHint.
+  auto common_box = [&](const int* corner, int n) {
+    if (deep.empty()) return kNoHint;
+    const uint32_t k = plan.sample_piece[corner[0]];
+    for (int c = 0; c < n; ++c)
+      if (!deep[corner[c]] || plan.sample_piece[corner[c]] != k) return kNoHint;
+    return k;
+  };
   parallel_for(E, threads, [&](long long eb, long long ee) {
     std::vector<int> moved_piece;
     for (long long e = eb; e < ee; ++e) {
       int a = plan.edge_vertex[2 * e], b = plan.edge_vertex[2 * e + 1];
+      const uint32_t known = common_box(&plan.edge_vertex[2 * e], 2);
       for (int j = 0; j < ES; ++j) {
         double t = edge_num[j] / double(N3), pos[3];
         for (int i = 0; i < 3; ++i) pos[i] = (1 - t) * moved[3 * (size_t)a + i] + t * moved[3 * (size_t)b + i];
-        put_sample(SV + e * ES + j, pos, (1 - t) * sub_weight[a] + t * sub_weight[b], moved_piece);
+        put_sample(SV + e * ES + j, pos, (1 - t) * sub_weight[a] + t * sub_weight[b], moved_piece, known);
       }
     }
     join(moved_piece);
@@ -155,6 +205,7 @@ std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVer
     std::vector<int> moved_piece;
     for (long long p = pb; p < pe; ++p) {
       const int* cv = &plan.patch_vertex[3 * p];
+      const uint32_t known = common_box(cv, 3);
       for (int o = 0; o < IS; ++o) {
         const int* q = &fit.numerator[3 * inside[o]];
         const double b[3] = {q[0] / double(N3), q[1] / double(N3), q[2] / double(N3)};
@@ -164,7 +215,7 @@ std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVer
           for (int c = 0; c < 3; ++c) pos[i] += b[c] * moved[3 * (size_t)cv[c] + i];
         }
         for (int c = 0; c < 3; ++c) w += b[c] * sub_weight[cv[c]];
-        put_sample(SV + (long long)E * ES + p * IS + o, pos, w, moved_piece);
+        put_sample(SV + (long long)E * ES + p * IS + o, pos, w, moved_piece, known);
       }
     }
     join(moved_piece);

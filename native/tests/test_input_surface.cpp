@@ -50,8 +50,8 @@ TEST(InputSurface, TrianglesKeepTheirCornersAndFaces) {
     for (int k = 0; k < 3; ++k) EXPECT_EQ(in.tv[3 * t + k], m.corner_vertex[in.triangulation.corners[3 * t + k]]);
   }
   // A closed octahedron: 12 edges, two triangles on each.
-  ASSERT_EQ(in.edges.count(), 12);
-  for (int e = 0; e < 12; ++e) EXPECT_EQ(in.edges.face_count[e], 2);
+  ASSERT_EQ(in.edges().count(), 12);
+  for (int e = 0; e < 12; ++e) EXPECT_EQ(in.edges().face_count[e], 2);
 }
 
 TEST(InputSurface, SplitNormalsOfACubeMarkItsEdgesSharpAndItsFacesFlat) {
@@ -61,11 +61,11 @@ TEST(InputSurface, SplitNormalsOfACubeMarkItsEdgesSharpAndItsFacesFlat) {
   for (int f = 0; f < 6; ++f)
     EXPECT_EQ(std::count(in.triangulation.face.begin(), in.triangulation.face.end(), f), 2) << "face " << f;
   // 12 cube edges, sharp at both ends; 6 face diagonals, smooth.
-  ASSERT_EQ(in.edges.count(), 18);
+  ASSERT_EQ(in.edges().count(), 18);
   int cube_edges = 0;
   for (int e = 0; e < 18; ++e) {
-    const int a = in.edges.vertex[2 * e], b = in.edges.vertex[2 * e + 1];
-    EXPECT_EQ(in.edges.face_count[e], 2);
+    const int a = in.edges().vertex[2 * e], b = in.edges().vertex[2 * e + 1];
+    EXPECT_EQ(in.edges().face_count[e], 2);
     if (cube_edge(a, b)) {
       ++cube_edges;
       EXPECT_EQ(in.sharp[e], 3) << a << "-" << b;
@@ -91,7 +91,7 @@ TEST(InputSurface, SplitNormalsOfACubeMarkItsEdgesSharpAndItsFacesFlat) {
 TEST(InputSurface, SmoothNormalsOfACubeSplitNothing) {
   const InputMesh m = cube_quads(0.2, 0.8);  // no normals: smooth vertex normals
   const InputSurface in = build_input_surface(m, kCos1Degree);
-  ASSERT_EQ(in.edges.count(), 18);
+  ASSERT_EQ(in.edges().count(), 18);
   for (int e = 0; e < 18; ++e) EXPECT_EQ(in.sharp[e], 0);
   for (int t = 0; t < 12; ++t) {
     EXPECT_EQ(in.adjust.flat[t], 0) << t;  // a corner's normal is ~55 degrees from its face's

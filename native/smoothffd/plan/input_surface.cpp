@@ -8,8 +8,7 @@
 namespace sffd {
 
 InputSurface build_input_surface(const InputMesh& mesh, double cos_tol, const Triangulation* triangulation,
-                                 const std::shared_ptr<const TriangleEdges>& kept_edges,
-                                 std::shared_ptr<const TriangleEdges>* edges_out) {
+                                 const std::shared_ptr<const TriangleEdges>& kept_edges) {
   Triangulation tr;
   if (triangulation) {
     check_triangulation(mesh, *triangulation);
@@ -21,11 +20,9 @@ InputSurface build_input_surface(const InputMesh& mesh, double cos_tol, const Tr
   for (size_t i = 0; i < tv.size(); ++i) tv[i] = mesh.corner_vertex[tr.corners[i]];
   std::vector<double> tcn = triangle_corner_normals(mesh, tr, tv);
   std::shared_ptr<const TriangleEdges> table = edges_of(tv, kept_edges);
-  EdgeTable edges = table->edges;
-  if (edges_out) *edges_out = std::move(table);
-  std::vector<uint8_t> sharp = classify_sharp_ends(edges, tv, tcn, cos_tol);
+  std::vector<uint8_t> sharp = classify_sharp_ends(table->edges, tv, tcn, cos_tol);
   AdjustNormals adjust(mesh.positions, tv, tcn, flat_triangles(mesh, tr, tcn, cos_tol));
-  return InputSurface{std::move(tr), std::move(tv), std::move(tcn), std::move(edges), std::move(sharp),
+  return InputSurface{std::move(tr), std::move(tv), std::move(tcn), std::move(table), std::move(sharp),
                       std::move(adjust)};
 }
 

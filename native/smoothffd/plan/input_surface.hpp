@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "smoothffd/mesh/triangulate.hpp"
@@ -17,7 +18,8 @@ struct InputSurface {
   Triangulation triangulation;  // #T triangles of input corners, and their faces
   std::vector<int> tv;          // #T x 3: the triangles' vertices
   std::vector<double> normal;   // #T x 3 x 3: unit normals at the corners (triangle_corner_normals)
-  EdgeTable edges;              // of tv
+  std::shared_ptr<const TriangleEdges> edge_table;  // of tv (a plan keeps it: Plan::input_edges)
+  const EdgeTable& edges() const { return edge_table->edges; }
   std::vector<uint8_t> sharp;   // #E: classify_sharp_ends of `normal` at the sharp angle
   AdjustNormals adjust;         // the normals the geometry follows: `normal`, the triangles' own
                                 // on flat faces (flat_triangles); bounded by a later stage
@@ -28,9 +30,8 @@ struct InputSurface {
 // input_triangle_face, checked against the mesh), or null: triangulate_polygons of the mesh's
 // own shape.
 // kept_edges: an earlier plan's edge table of its input triangles (Plan::input_edges), taken
-// where it is of the same triangles; *edges_out (if given) gets the table used.
+// where it is of the same triangles.
 InputSurface build_input_surface(const InputMesh& mesh, double cos_tol, const Triangulation* triangulation = nullptr,
-                                 const std::shared_ptr<const TriangleEdges>& kept_edges = nullptr,
-                                 std::shared_ptr<const TriangleEdges>* edges_out = nullptr);
+                                 const std::shared_ptr<const TriangleEdges>& kept_edges = nullptr);
 
 }  // namespace sffd

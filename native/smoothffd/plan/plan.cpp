@@ -135,8 +135,8 @@ Plan build(const InputMesh& mesh, const LatticeSpec& lattice, const PlanOptions&
   const double cos_tol = std::cos(opt.sharp_angle_degrees * M_PI / 180.0);
 
   // 1. The input surface: triangles, corner normals, sharp edge ends, flat faces.
-  InputSurface in = build_input_surface(mesh, cos_tol, triangulation, like ? like->input_edges : nullptr,
-                                        &plan.input_edges);
+  InputSurface in = build_input_surface(mesh, cos_tol, triangulation, like ? like->input_edges : nullptr);
+  plan.input_edges = in.edge_table;
   timer.lap("triangulate");
 
   // 2. Knot-box clipping (the patch count, checked against the memory limit before any table of

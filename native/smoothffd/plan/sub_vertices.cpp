@@ -20,7 +20,7 @@ BoundedRest bound_rest_surface(const std::vector<double>& X, InputSurface& in, c
       const int q = fill[clip.patch_tri[p]]++;
       std::copy(&clip.patch_bary[9 * (size_t)p], &clip.patch_bary[9 * (size_t)p] + 9, &piece_bary[9 * (size_t)q]);
     }
-    out.bounded_vertices = bound_adjust_normals(X, in.tv, in.edges, in.sharp, in.normal, in.adjust, out.surface,
+    out.bounded_vertices = bound_adjust_normals(X, in.tv, in.edges(), in.sharp, in.normal, in.adjust, out.surface,
                                                 &piece_start, &piece_bary);
   }
   for (uint8_t f : in.adjust.flat) out.flat_triangles += f;
@@ -42,7 +42,7 @@ SubVertices place_sub_vertices(const InputMesh& mesh, const InputSurface& in, co
       }
       int t = clip.origin_tri[v];
       const double* b = &clip.origin_bary[3 * (size_t)v];
-      rest_surface_point(rest, mesh.positions, in.tv, in.edges, t, b, &out.position[3 * (size_t)v]);
+      rest_surface_point(rest, mesh.positions, in.tv, in.edges(), t, b, &out.position[3 * (size_t)v]);
       if (!mesh.vertex_weight.empty()) {
         out.weight[v] = 0;
         for (int k = 0; k < 3; ++k) out.weight[v] += b[k] * mesh.vertex_weight[in.tv[3 * t + k]];

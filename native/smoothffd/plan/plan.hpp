@@ -133,17 +133,16 @@ struct Plan {
   int turned_sub_normals = 0;  // patch corners turned again on the sub-mesh (its own bound)
   bool pieces_held = false;    // follow_plan held the previous plan's pieces (hold_clip)
   // What the CPU evaluator derives its own tables from, named so that an evaluator of a plan
-  // that followed a pose can take over its predecessor's (eval/cpu_evaluator.hpp): a new
-  // number (new_table_id) whenever a build computes them anew, the previous plan's where a
-  // follow keeps them.
-  uint64_t samples_id = 0;   // the samples' count, indexing (patch_samples, edge_constraint)
-                             // and lattice pieces (sample_piece)
+  // that followed a pose can take over its predecessor's (eval/cpu_evaluator.hpp): numbers
+  // from new_table_id.
+  uint64_t samples_id = 0;   // this build's samples (their count, indexing and lattice pieces)
   uint64_t samples_base_id = 0;       // the followed plan's samples_id where these samples are
                                       // its samples (the same count and indexing), else 0
   std::vector<int> repieced_samples;  // then the samples whose lattice pieces are not those
                                       // they had there (ascending)
   uint64_t topology_id = 0;  // the output topology and render vertices (output_owner,
-                             // render_owner and their counts)
+                             // render_owner and their counts): new where a build makes them,
+                             // the previous plan's where a follow keeps them
 
   // --- lattice tables
   std::vector<AxisPieceF> pieces;  // the three axes' pieces, concatenated

@@ -223,22 +223,12 @@ std::vector<double> build_samples(Plan& plan, const FitTables& fit, const SubVer
   plan.fit_matrix.assign(fit.M_r.begin(), fit.M_r.end());
   plan.column_bary.resize(3 * (size_t)K);
   for (int i = 0; i < 3 * K; ++i) plan.column_bary[i] = (float)(fit.numerator[i] / double(N3));
-  // The held plan's samples_id where its indexing is taken over and every sample is in the
-  // piece it had there (the same sample count, indexing and pieces); else a new one, and where
-  // the indexing is the held plan's, the samples whose pieces are not.
-  plan.repieced_samples.clear();
-  if (held && piece_hint && repieced.empty()) {
-    plan.samples_id = held->samples_id;
-    plan.samples_base_id = held->samples_base_id;
-    plan.repieced_samples = held->repieced_samples;
-  } else {
-    plan.samples_id = new_table_id();
-    plan.samples_base_id = held && piece_hint ? held->samples_id : 0;
-    if (plan.samples_base_id) {
-      std::sort(repieced.begin(), repieced.end());
-      plan.repieced_samples = std::move(repieced);
-    }
-  }
+  // Where the indexing is the held plan's: its samples_id as the base, and the samples whose
+  // pieces are not those they had there.
+  plan.samples_id = new_table_id();
+  plan.samples_base_id = held && piece_hint ? held->samples_id : 0;
+  std::sort(repieced.begin(), repieced.end());
+  plan.repieced_samples = std::move(repieced);
   plan.samples = (int)S;
   plan.fit_degree = n;
   plan.columns = K;

@@ -26,6 +26,20 @@ int box_terms(const Plan& plan, uint32_t packed) {
   return need <= 4 ? need : kMaxTerms;
 }
 
+// Batches of sb.order[from, end), whose samples come grouped by box: each box's run cut into
+// batches of at most kLanes (sb.start's closing entry is the caller's).
+void cut_batches(const Plan& plan, SampleBatches& sb, int from, int end) {
+  for (int i = from; i < end;) {
+    const uint32_t key = plan.sample_piece[sb.order[i]];
+    int j = i;
+    while (j < end && j - i < kLanes && plan.sample_piece[sb.order[j]] == key) ++j;
+    sb.start.push_back(i);
+    sb.size.push_back((uint8_t)(j - i));
+    sb.terms.push_back((uint8_t)box_terms(plan, key));
+    i = j;
+  }
+}
+
 }  // namespace
 
 SampleBatches make_sample_batches(const Plan& plan, const std::vector<int>* only) {
@@ -77,15 +91,7 @@ SampleBatches make_sample_batches(const Plan& plan, const std::vector<int>* only
   std::stable_sort(sb.order.begin(), sb.order.end(), [&](int x, int y) {
     return box(plan.sample_piece[x]) < box(plan.sample_piece[y]);
   });
-  for (int i = 0; i < S;) {
-    const uint32_t key = plan.sample_piece[sb.order[i]];
-    int j = i;
-    while (j < S && j - i < kLanes && plan.sample_piece[sb.order[j]] == key) ++j;
-    sb.start.push_back(i);
-    sb.size.push_back((uint8_t)(j - i));
-    sb.terms.push_back((uint8_t)box_terms(plan, key));
-    i = j;
-  }
+  cut_batches(plan, sb, 0, S);
   sb.start.push_back(S);
   return sb;
 }
@@ -120,21 +126,16 @@ bool repiece_sample_batches(const Plan& plan, SampleBatches& sb, std::vector<int
   std::vector<int> by_box(moved);
   std::stable_sort(by_box.begin(), by_box.end(),
                    [&](int x, int y) { return plan.sample_piece[x] < plan.sample_piece[y]; });
-  sb.start.pop_back();
-  for (size_t i = 0; i < by_box.size();) {
-    const uint32_t key = plan.sample_piece[by_box[i]];
-    size_t j = i;
-    while (j < by_box.size() && j - i < (size_t)kLanes && plan.sample_piece[by_box[j]] == key) ++j;
-    sb.start.push_back((int)sb.order.size());
-    sb.size.push_back((uint8_t)(j - i));
-    sb.terms.push_back((uint8_t)box_terms(plan, key));
-    for (; i < j; ++i) {
-      slot[by_box[i]] = (int)sb.order.size();
-      sb.order.push_back(by_box[i]);
-    }
-    ++sb.appended;
+  const int from = (int)sb.order.size();
+  for (int s : by_box) {
+    slot[s] = (int)sb.order.size();
+    sb.order.push_back(s);
   }
+  const long long before = sb.count();
+  sb.start.pop_back();
+  cut_batches(plan, sb, from, (int)sb.order.size());
   sb.start.push_back((int)sb.order.size());
+  sb.appended += sb.count() - before;
   return sb.appended <= made / 8 + 64;
 }
 
